@@ -1,0 +1,149 @@
+"""Rotations in numpy: skew, exponential, logarithm, Euler angles, quaternions.
+
+Conventions (SPEC section 1): `C_a_b` maps vectors from frame b to frame a;
+Euler angles are `C = Rz(yaw) Ry(pitch) Rx(roll)`, returned as
+`[roll, pitch, yaw]`. Functions accept a single vector/matrix or a stack along
+the first axis.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """(v x) for v of shape (3,) or (N, 3)."""
+    v = np.asarray(v, dtype=float)
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    o = np.zeros_like(x)
+    return np.stack(
+        [np.stack([o, -z, y], -1), np.stack([z, o, -x], -1), np.stack([-y, x, o], -1)], -2
+    )
+
+
+def vee(S: np.ndarray) -> np.ndarray:
+    """Inverse of skew, taking the antisymmetric part: vee((S - S^T)/2)."""
+    S = np.asarray(S, dtype=float)
+    return 0.5 * np.stack(
+        [S[..., 2, 1] - S[..., 1, 2], S[..., 0, 2] - S[..., 2, 0], S[..., 1, 0] - S[..., 0, 1]], -1
+    )
+
+
+def exp_so3(phi: np.ndarray) -> np.ndarray:
+    """Rotation matrix Exp(phi) (Rodrigues), for phi of shape (3,) or (N, 3)."""
+    phi = np.asarray(phi, dtype=float)
+    th2 = np.sum(phi * phi, axis=-1)[..., None, None]
+    th = np.sqrt(th2)
+    small = th2 < 1e-12
+    th_safe = np.where(small, 1.0, th)
+    a = np.where(small, 1.0 - th2 / 6.0, np.sin(th_safe) / th_safe)
+    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(th_safe)) / th_safe**2)
+    P = skew(phi)
+    eye = np.broadcast_to(np.eye(3), P.shape)
+    return eye + a * P + b * (P @ P)
+
+
+def log_so3(C: np.ndarray) -> np.ndarray:
+    """Rotation vector phi with Exp(phi) = C, |phi| <= pi."""
+    C = np.asarray(C, dtype=float)
+    tr = np.trace(C, axis1=-2, axis2=-1)
+    cos_th = np.clip((tr - 1.0) / 2.0, -1.0, 1.0)
+    th = np.arccos(cos_th)
+    w = vee(C)  # sin(th) * axis
+    sin_th = np.sin(th)
+    small = th < 1e-6
+    near_pi = th > np.pi - 1e-3
+    scale = np.where(small, 1.0 + th**2 / 6.0, th / np.where(small | near_pi, 1.0, sin_th))
+    phi = w * scale[..., None]
+    if np.any(near_pi):
+        # axis from the symmetric part: C + I ~ 2 a a^T near pi
+        Cs = C.reshape(-1, 3, 3)
+        ths = np.atleast_1d(th).reshape(-1)
+        out = np.atleast_2d(phi).reshape(-1, 3).copy()
+        for k in np.flatnonzero(np.atleast_1d(near_pi).reshape(-1)):
+            B = (Cs[k] + np.eye(3)) / 2.0
+            i = int(np.argmax(np.diag(B)))
+            a = B[:, i] / np.sqrt(max(B[i, i], 1e-300))
+            if np.dot(a, vee(Cs[k])) < 0:
+                a = -a
+            out[k] = a * ths[k]
+        phi = out.reshape(phi.shape)
+    return phi
+
+
+def rot_x(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def rot_y(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def rot_z(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def euler_to_dcm(euler_deg) -> np.ndarray:
+    """C = Rz(yaw) Ry(pitch) Rx(roll) from [roll, pitch, yaw] in degrees."""
+    r, p, y = np.deg2rad(np.asarray(euler_deg, dtype=float))
+    return rot_z(y) @ rot_y(p) @ rot_x(r)
+
+
+def dcm_to_euler(C: np.ndarray) -> np.ndarray:
+    """[roll, pitch, yaw] in degrees of C = Rz(yaw) Ry(pitch) Rx(roll) (the paper's dcm2eul)."""
+    C = np.asarray(C, dtype=float)
+    pitch = np.arcsin(np.clip(-C[2, 0], -1.0, 1.0))
+    roll = np.arctan2(C[2, 1], C[2, 2])
+    yaw = np.arctan2(C[1, 0], C[0, 0])
+    return np.rad2deg(np.array([roll, pitch, yaw]))
+
+
+def quat_to_dcm(q_wxyz: np.ndarray) -> np.ndarray:
+    """Rotation matrix of unit quaternion(s) [w, x, y, z] (Hamilton, active)."""
+    q = np.asarray(q_wxyz, dtype=float)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )
+
+
+def dcm_to_quat(C: np.ndarray) -> np.ndarray:
+    """Unit quaternion [w, x, y, z] with w >= 0 of a rotation matrix (single matrix)."""
+    C = np.asarray(C, dtype=float)
+    K = np.array(
+        [
+            [C[0, 0] - C[1, 1] - C[2, 2], C[1, 0] + C[0, 1], C[2, 0] + C[0, 2], C[2, 1] - C[1, 2]],
+            [C[1, 0] + C[0, 1], C[1, 1] - C[0, 0] - C[2, 2], C[2, 1] + C[1, 2], C[0, 2] - C[2, 0]],
+            [C[2, 0] + C[0, 2], C[2, 1] + C[1, 2], C[2, 2] - C[0, 0] - C[1, 1], C[1, 0] - C[0, 1]],
+            [C[2, 1] - C[1, 2], C[0, 2] - C[2, 0], C[1, 0] - C[0, 1], C[0, 0] + C[1, 1] + C[2, 2]],
+        ]
+    ) / 3.0
+    w, V = np.linalg.eigh(K)
+    x, y, z, qw = V[:, -1]
+    q = np.array([qw, x, y, z])
+    return q if qw >= 0 else -q
+
+
+def integrate_body_rates(t_s: np.ndarray, omega_rad_s: np.ndarray, C0: np.ndarray | None = None) -> np.ndarray:
+    """Attitudes C(t_k) from body rates sampled at t_k, dC/dt = C (w x).
+
+    Second-order accurate with a coning term: each step rotates by
+    (w_a + w_b)/2 dt + dt^2/12 (w_a x w_b), exact for rates linear in time up to
+    third order. Returns an (N, 3, 3) array; C(t_0) = C0 (identity by default).
+    """
+    dt = np.diff(t_s)[:, None]
+    wa, wb = omega_rad_s[:-1], omega_rad_s[1:]
+    steps = exp_so3(0.5 * (wa + wb) * dt + (dt**2 / 12.0) * np.cross(wa, wb))
+    out = np.empty((len(t_s), 3, 3))
+    out[0] = np.eye(3) if C0 is None else C0
+    for k in range(len(steps)):
+        out[k + 1] = out[k] @ steps[k]
+    return out
