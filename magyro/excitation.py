@@ -1,0 +1,83 @@
+"""The paper's matrix M and its integrals, shared by the linear initial estimate
+(eq. 13) and the observability check (eq. 10-11).
+
+    d m^m / dt = m^m x (K y_g + eps) = M [vec K; eps],
+    M = [y_g^T (x) (m^m x),  m^m x]          (3 x 12, vec stacks columns)
+
+Everything is evaluated on the gyro's time base, with the calibrated field m^m
+linearly interpolated there.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .so3 import skew
+
+PARAMETER_NAMES = (
+    "K11", "K21", "K31", "K12", "K22", "K32", "K13", "K23", "K33", "eps_x", "eps_y", "eps_z",
+)
+
+
+def interpolate_rows(t_new: np.ndarray, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Linear interpolation of each column of x (N, d) from times t onto t_new (clamped at the ends)."""
+    return np.column_stack([np.interp(t_new, t, x[:, j]) for j in range(x.shape[1])])
+
+
+def m_matrices(gyro: np.ndarray, field_m: np.ndarray) -> np.ndarray:
+    """M at each sample: (N, 3, 12) from gyro y_g (N, 3) and field m^m (N, 3)."""
+    S = skew(field_m)                                     # (N, 3, 3)
+    blocks = [gyro[:, j, None, None] * S for j in range(3)]  # y_j (m x): column block j of vec K
+    return np.concatenate(blocks + [S], axis=2)
+
+
+def trapezoid_weights(t_s: np.ndarray) -> np.ndarray:
+    """Weights w_k with sum_k w_k f(t_k) the trapezoid integral of f over [t_0, t_N-1]."""
+    dt = np.diff(t_s)
+    w = np.zeros_like(t_s)
+    w[:-1] += 0.5 * dt
+    w[1:] += 0.5 * dt
+    return w
+
+
+def field_on_gyro_times(t_gyro_s: np.ndarray, t_mag_s: np.ndarray, field_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(mask, field) for the gyro samples inside the magnetometer's time span."""
+    inside = (t_gyro_s >= t_mag_s[0]) & (t_gyro_s <= t_mag_s[-1])
+    return inside, interpolate_rows(t_gyro_s[inside], t_mag_s, field_m)
+
+
+def information_integral(t_gyro_s, gyro_rad_s, t_mag_s, field_m) -> np.ndarray:
+    """The 12 x 12 integral of M^T M over the session (paper eq. 11)."""
+    inside, f = field_on_gyro_times(t_gyro_s, t_mag_s, field_m)
+    M = m_matrices(gyro_rad_s[inside], f)
+    w = trapezoid_weights(t_gyro_s[inside])
+    return np.einsum("k,kia,kib->ab", w, M, M)
+
+
+def cumulative_information(t_gyro_s, gyro_rad_s, t_mag_s, field_m, t_checkpoints_s) -> np.ndarray:
+    """Integral of M^T M from the start up to each checkpoint time: (C, 12, 12)."""
+    inside, f = field_on_gyro_times(t_gyro_s, t_mag_s, field_m)
+    t = t_gyro_s[inside]
+    M = m_matrices(gyro_rad_s[inside], f)
+    MtM = np.einsum("kia,kib->kab", M, M)
+    dt = np.diff(t)[:, None, None]
+    cum = np.concatenate([np.zeros((1, 12, 12)), np.cumsum(0.5 * (MtM[1:] + MtM[:-1]) * dt, axis=0)])
+    idx = np.clip(np.searchsorted(t, t_checkpoints_s, side="right") - 1, 0, len(t) - 1)
+    return cum[idx]
+
+
+def windowed_increments(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s: float):
+    """Rows of eq. (13): field change over each window and the integral of M over it.
+
+    Windows run between magnetometer samples about `window_s` apart. Returns
+    (dm (W, 3), int_M (W, 3, 12)).
+    """
+    inside, f = field_on_gyro_times(t_gyro_s, t_mag_s, field_m)
+    t = t_gyro_s[inside]
+    M = m_matrices(gyro_rad_s[inside], f)
+    cum = np.concatenate([np.zeros((1, 3, 12)), np.cumsum(0.5 * (M[1:] + M[:-1]) * np.diff(t)[:, None, None], axis=0)])
+    step = max(1, int(round(window_s * (len(t_mag_s) - 1) / (t_mag_s[-1] - t_mag_s[0]))))
+    ends = np.arange(0, len(t_mag_s), step)
+    ends = ends[(t_mag_s[ends] >= t[0]) & (t_mag_s[ends] <= t[-1])]
+    cum_at = np.stack([np.stack([np.interp(t_mag_s[ends], t, cum[:, i, j]) for j in range(12)], -1) for i in range(3)], 1)
+    dm = np.diff(field_m[ends], axis=0)
+    return dm, np.diff(cum_at, axis=0)

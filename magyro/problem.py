@@ -1,0 +1,381 @@
+"""The joint calibration as one nonlinear least squares in CasADi.
+
+Decision variables, all small corrections about a linearisation point so
+that IPOPT sees numbers of order one:
+
+    U    (6)   R^-1 = S0 (I + U), U upper triangular    soft iron and field strength
+    dh   (3)   h = h0 + field_scale * dh                 hard iron
+    dK   (9)   K = K0 + dK   (column-major)              gyro, in the m frame
+    deps (3)   eps = eps0 + deps                         rad/s
+    dm   (2)   m^i = normalise(m0 + B dm)                unit field, 2 dof
+    phi  (3 x (N-1))  attitude at nodes 1..N-1: C_m^i(tau_n) = Cbar_n Exp(phi_n)
+
+Node 0 sits on the first magnetometer sample with C_i^m = I (the gauge of
+SPEC section 1, paper eq. 12). Nodes sit on every `stride`-th magnetometer
+sample; between them the gyro is integrated in sub-steps ending on every
+gyro and magnetometer time, each a rotation by
+(w_a + w_b)/2 dt + dt^2/12 (w_a x w_b), w = K y_g + eps (third-order local
+error for rates linear in time). Residuals, whitened:
+
+    magnetometer  (y_m - h - R^-1 C_i^m(t_j) m^i) * w_mag             raw units
+    gyro          Winv vee(E - E^T)/2 / sqrt(T_n)                      E: mismatch of
+                  the integrated gyro against the two node attitudes, Winv = L^-1 / sigma_g
+                  with L L^T = K0 K0^T (the gyro noise enters through K)
+
+One SX kernel computes an interval's residuals and, for the Gauss-Newton
+Hessian, its Jacobian blocks; it is `map`ped over the intervals. The
+Hessian J^T J is assembled from those blocks (theta-theta by one sparse
+product), so no derivative of the whole graph is ever formed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from . import so3
+from .compiled import compile_kernel
+
+N_GLOBAL = 23
+GLOBAL_SLICES = {"U": slice(0, 6), "dh": slice(6, 9), "dK": slice(9, 18), "deps": slice(18, 21), "dm": slice(21, 23)}
+UPPER_INDEX = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+GLOBAL_LAYOUT = [("S0", 9), ("h0", 3), ("K0", 9), ("eps0", 3), ("m0", 3), ("B", 6), ("field_scale", 1), ("Winv", 9), ("w_mag", 1)]
+
+
+# --------------------------------------------------------------------------- grid
+@dataclass(frozen=True)
+class Grid:
+    """Where nodes, sub-steps and magnetometer samples sit; numbers only.
+
+    Interval n (node n to n+1) holds `stride` segments, each from one
+    magnetometer sample to the next, each cut into at most `substeps`
+    sub-steps (padded with zero length).
+    """
+
+    t_node_s: np.ndarray         # (N,)
+    mag_index: np.ndarray        # (N-1, stride) magnetometer sample at each segment start
+    dt_s: np.ndarray             # (N-1, stride, L)
+    gyro_a: np.ndarray           # (N-1, stride, L, 3) raw gyro at each sub-step start
+    gyro_b: np.ndarray           # (N-1, stride, L, 3) raw gyro at each sub-step end
+
+    @property
+    def nodes(self) -> int:
+        return len(self.t_node_s)
+
+    @property
+    def stride(self) -> int:
+        return self.dt_s.shape[1]
+
+    @property
+    def substeps(self) -> int:
+        return self.dt_s.shape[2]
+
+    @property
+    def interval_s(self) -> np.ndarray:
+        return np.diff(self.t_node_s)
+
+    last_mag_index: int          # magnetometer sample at the last node
+
+    @property
+    def node_mag_index(self) -> np.ndarray:
+        """Magnetometer sample at each node."""
+        return np.append(self.mag_index[:, 0], self.last_mag_index)
+
+
+def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
+    """Nodes on every `stride`-th magnetometer sample inside the gyro's time span."""
+    usable = np.flatnonzero((t_mag_s >= t_gyro_s[0]) & (t_mag_s <= t_gyro_s[-1]))
+    n_int = (len(usable) - 1) // stride
+    seg_idx = usable[: n_int * stride + 1]
+    t_seg = t_mag_s[seg_idx]
+    inside = t_gyro_s[(t_gyro_s > t_seg[0]) & (t_gyro_s < t_seg[-1])]
+    t_all = np.union1d(inside, t_seg)
+    y_all = np.column_stack([np.interp(t_all, t_gyro_s, gyro_rad_s[:, i]) for i in range(3)])
+    seg_of_step = np.searchsorted(t_seg, t_all[:-1], side="right") - 1
+    first = np.searchsorted(seg_of_step, np.arange(len(t_seg) - 1), side="left")
+    pos = np.arange(len(t_all) - 1) - first[seg_of_step]
+    L = int(pos.max()) + 1
+    interval, segment = np.divmod(seg_of_step, stride)
+    dt = np.zeros((n_int, stride, L))
+    ya = np.zeros((n_int, stride, L, 3))
+    yb = np.zeros((n_int, stride, L, 3))
+    dt[interval, segment, pos] = np.diff(t_all)
+    ya[interval, segment, pos] = y_all[:-1]
+    yb[interval, segment, pos] = y_all[1:]
+    return Grid(t_seg[::stride], seg_idx[:-1].reshape(n_int, stride), dt, ya, yb, int(seg_idx[-1]))
+
+
+# ------------------------------------------------------------- SX building blocks
+def quat_exp(phi):
+    """Quaternion [w, x, y, z] of Exp(phi); smooth at zero (series branch, safe argument)."""
+    th2 = ca.dot(phi, phi)
+    small = th2 < 1e-6
+    th_safe = ca.sqrt(ca.if_else(small, 1.0, th2))
+    c = ca.if_else(small, 1.0 - th2 / 8.0 + th2 * th2 / 384.0, ca.cos(th_safe / 2.0))
+    s = ca.if_else(small, 0.5 - th2 / 48.0 + th2 * th2 / 3840.0, ca.sin(th_safe / 2.0) / th_safe)
+    return ca.vertcat(c, s * phi)
+
+
+def quat_mul(a, b):
+    aw, av = a[0], a[1:]
+    bw, bv = b[0], b[1:]
+    return ca.vertcat(aw * bw - ca.dot(av, bv), aw * bv + bw * av + ca.cross(av, bv))
+
+
+def quat_conj(q):
+    return ca.vertcat(q[0], -q[1:])
+
+
+def rotate_inverse(q, v):
+    """R(q)^T v."""
+    u = q[1:]
+    c = ca.cross(u, v)
+    return v - 2 * q[0] * c + 2 * ca.cross(u, c)
+
+
+def unpack_globals(theta, g):
+    """Physical parameters (S = R^-1, h, K, eps, m^i) from corrections and the linearisation."""
+    o = 0
+    parts = {}
+    for name, n in GLOBAL_LAYOUT:
+        parts[name] = g[o : o + n]
+        o += n
+    S0 = ca.reshape(parts["S0"], 3, 3)
+    U = theta[GLOBAL_SLICES["U"]]
+    Umat = ca.SX.zeros(3, 3) if isinstance(theta, ca.SX) else ca.MX.zeros(3, 3)
+    for i, (r, c) in enumerate(UPPER_INDEX):
+        Umat[r, c] = U[i]
+    S = ca.mtimes(S0, ca.DM.eye(3) + Umat)
+    h = parts["h0"] + parts["field_scale"] * theta[GLOBAL_SLICES["dh"]]
+    K = ca.reshape(parts["K0"], 3, 3) + ca.reshape(theta[GLOBAL_SLICES["dK"]], 3, 3)
+    eps = parts["eps0"] + theta[GLOBAL_SLICES["deps"]]
+    m_raw = parts["m0"] + ca.mtimes(ca.reshape(parts["B"], 3, 2), theta[GLOBAL_SLICES["dm"]])
+    m_i = m_raw / ca.norm_2(m_raw)
+    return S, h, K, eps, m_i, ca.reshape(parts["Winv"], 3, 3), parts["w_mag"]
+
+
+def data_layout(stride: int, L: int) -> list[tuple[str, int]]:
+    return [("Cbar", 9), ("qD", 4), ("w_int", 1), ("ymag", 3 * stride), ("dt", stride * L), ("ya", 3 * stride * L), ("yb", 3 * stride * L)]
+
+
+def interval_residuals(theta, phi_k, phi_k1, g, d, stride: int, L: int):
+    """Whitened residuals of one interval: `stride` magnetometer samples, then the gyro mismatch."""
+    S, h, K, eps, m_i, Winv, w_mag = unpack_globals(theta, g)
+    o = 0
+    parts = {}
+    for name, n in data_layout(stride, L):
+        parts[name] = d[o : o + n]
+        o += n
+    Cbar = ca.reshape(parts["Cbar"], 3, 3)
+    q_k = quat_exp(phi_k)
+    n_k = rotate_inverse(q_k, ca.mtimes(Cbar.T, m_i))  # C_i^m(tau_k) m^i
+    Q = ca.DM([1, 0, 0, 0])
+    res = []
+    for i in range(stride):
+        v = rotate_inverse(Q, n_k)
+        res.append((parts["ymag"][3 * i : 3 * i + 3] - ca.mtimes(S, v) - h) * w_mag)
+        for l in range(L):
+            j = i * L + l
+            dt = parts["dt"][j]
+            wa = ca.mtimes(K, parts["ya"][3 * j : 3 * j + 3]) + eps
+            wb = ca.mtimes(K, parts["yb"][3 * j : 3 * j + 3]) + eps
+            Q = quat_mul(Q, quat_exp(0.5 * (wa + wb) * dt + (dt * dt / 12.0) * ca.cross(wa, wb)))
+    qE = quat_mul(quat_mul(quat_mul(quat_conj(Q), quat_conj(q_k)), parts["qD"]), quat_exp(phi_k1))
+    res.append(ca.mtimes(Winv, 2.0 * qE[0] * qE[1:]) * parts["w_int"])
+    return ca.vertcat(*res)
+
+
+# ------------------------------------------------------------------ linearisation
+@dataclass(frozen=True)
+class Linearisation:
+    """The point the corrections are taken about, and the noise weights."""
+
+    S0: np.ndarray             # R0^-1
+    h0: np.ndarray
+    K0: np.ndarray
+    eps0: np.ndarray
+    m0: np.ndarray             # unit vector
+    C_m_i_nominal: np.ndarray  # (N, 3, 3), node 0 = I
+    field_scale: float         # typical |R^-1|, scales dh
+
+
+def tangent_basis(m0: np.ndarray) -> np.ndarray:
+    """3 x 2 orthonormal basis of the plane perpendicular to the unit vector m0."""
+    a = np.eye(3)[int(np.argmin(np.abs(m0)))]
+    b1 = np.cross(m0, a)
+    b1 /= np.linalg.norm(b1)
+    return np.column_stack([b1, np.cross(m0, b1)])
+
+
+# -------------------------------------------------------------------- the problem
+class JointProblem:
+    """The least squares on one grid shape; data and linearisation enter as parameters."""
+
+    def __init__(self, grid: Grid, compiled: bool = True):
+        self.grid = grid
+        n, s, L = grid.nodes, grid.stride, grid.substeps
+        self.n_int = n - 1
+        self.n_glob_p = sum(k for _, k in GLOBAL_LAYOUT)
+        self.n_data = sum(k for _, k in data_layout(s, L))
+        self.n_x = N_GLOBAL + 3 * self.n_int
+        self.n_res_per_interval = 3 * s + 3
+
+        th = ca.SX.sym("theta", N_GLOBAL)
+        pk = ca.SX.sym("phi_k", 3)
+        pk1 = ca.SX.sym("phi_k1", 3)
+        g = ca.SX.sym("g", self.n_glob_p)
+        d = ca.SX.sym("d", self.n_data)
+        r = interval_residuals(th, pk, pk1, g, d, s, L)
+        JthT = ca.jacobian(r, th).T
+        Jk = ca.jacobian(r, pk)
+        Jk1 = ca.jacobian(r, pk1)
+        self.residual_kernel = ca.Function("interval_residuals", [th, pk, pk1, g, d], [r])
+        ssq = ca.sumsqr(r)
+        self.gradient_kernel = ca.Function(
+            "interval_gradient", [th, pk, pk1, g, d],
+            [ssq, 0.5 * ca.gradient(ssq, th), 0.5 * ca.gradient(ssq, pk), 0.5 * ca.gradient(ssq, pk1)],
+        )
+        self.gn_kernel = ca.Function(
+            "interval_gauss_newton", [th, pk, pk1, g, d],
+            [JthT, ca.mtimes(JthT, Jk), ca.mtimes(JthT, Jk1), ca.mtimes(Jk.T, Jk), ca.mtimes(Jk1.T, Jk1), ca.mtimes(Jk.T, Jk1)],
+        )
+        if compiled:  # the residual kernel stays symbolic: nlpsol differentiates f at set-up
+            self.gradient_kernel = compile_kernel(self.gradient_kernel)
+            self.gn_kernel = compile_kernel(self.gn_kernel)
+        S, h, K, eps, m_i, _, _ = unpack_globals(th, g)
+        self.physical_function = ca.Function("physical", [th, g], [S, h, K, eps, m_i], ["theta", "g"], ["S", "h", "K", "eps", "m_i"])
+        self._build_graph()
+        self._solver = None
+
+    # ------------------------------------------------------------------ MX graph
+    def _split(self, x, p):
+        theta = x[:N_GLOBAL]
+        phi = ca.reshape(x[N_GLOBAL:], 3, self.n_int)
+        phi_k = ca.horzcat(ca.MX.zeros(3, 1), phi[:, : self.n_int - 1])
+        g = p[: self.n_glob_p]
+        D = ca.reshape(p[self.n_glob_p :], self.n_data, self.n_int)
+        return theta, phi_k, phi, g, D
+
+    def _build_graph(self):
+        x = ca.MX.sym("x", self.n_x)
+        p = ca.MX.sym("p", self.n_glob_p + self.n_data * self.n_int)
+        theta, phi_k, phi_k1, g, D = self._split(x, p)
+        R = self.residual_kernel.map(self.n_int)(theta, phi_k, phi_k1, g, D)
+        r = ca.vec(R)
+        self.residual_function = ca.Function("residuals", [x, p], [r])
+        self._x, self._p, self._f = x, p, 0.5 * ca.sumsqr(r)
+
+        ssq, g_t, g_l, g_r = self.gradient_kernel.map(self.n_int)(theta, phi_k, phi_k1, g, D)
+        grad_phi = ca.horzcat(g_l[:, 1:], ca.MX.zeros(3, 1)) + g_r
+        grad = ca.vertcat(ca.sum2(g_t), ca.vec(grad_phi))
+        self._grad_f = ca.Function("nlp_grad_f", [x, p], [0.5 * ca.sum2(ssq), grad], ["x", "p"], ["f", "grad_f_x"])
+
+        JthT, CL, CR, DL, DR, O = self.gn_kernel.map(self.n_int)(theta, phi_k, phi_k1, g, D)
+        n3 = 3 * self.n_int
+        H_tt = ca.mtimes(JthT, JthT.T)
+        H_tp = ca.horzcat(CL[:, 3:], ca.MX.zeros(N_GLOBAL, 3)) + CR
+        H_pp = ca.horzcat(DL[:, 3:], ca.MX.zeros(3, 3)) + DR
+        values = ca.vertcat(ca.vec(ca.densify(H_tt)), ca.vec(ca.densify(H_tp)), ca.vec(ca.densify(H_pp)), ca.vec(ca.densify(O)))
+        sp, perm = hessian_pattern(self.n_int)
+        H = ca.MX(sp, values[perm])
+        self.hessian_function = ca.Function("gauss_newton_hessian", [x, p], [H])
+        lam_f = ca.MX.sym("lam_f")
+        lam_g = ca.MX.sym("lam_g", 0)
+        self._hess_lag = ca.Function(
+            "nlp_hess_l", [x, p, lam_f, lam_g], [lam_f * H], ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]
+        )
+        assert n3 == H_tp.shape[1]
+
+    # ---------------------------------------------------------------- numbers in
+    def parameters(self, lin: Linearisation, y_mag, sigma_mag: float, sigma_gyro_density: float) -> np.ndarray:
+        """Flat parameter vector: the linearisation, the weights and the data on the grid."""
+        g_ = self.grid
+        Lchol = np.linalg.cholesky(lin.K0 @ lin.K0.T)
+        glob = {
+            "S0": lin.S0, "h0": lin.h0, "K0": lin.K0, "eps0": lin.eps0, "m0": lin.m0,
+            "B": tangent_basis(lin.m0), "field_scale": np.array([lin.field_scale]),
+            "Winv": np.linalg.inv(Lchol) / sigma_gyro_density, "w_mag": np.array([1.0 / sigma_mag]),
+        }
+        gvec = np.concatenate([np.asarray(glob[k], float).reshape(-1, order="F") for k, _ in GLOBAL_LAYOUT])
+        C = lin.C_m_i_nominal
+        D = np.einsum("kji,kjl->kil", C[:-1], C[1:])
+        n_int, s, L = self.n_int, g_.stride, g_.substeps
+        cols = {
+            "Cbar": C[:-1].transpose(0, 2, 1).reshape(n_int, 9),  # column-major vec of each C
+            "qD": np.stack([so3.dcm_to_quat(Dk) for Dk in D]),
+            "w_int": (1.0 / np.sqrt(g_.interval_s))[:, None],
+            "ymag": np.asarray(y_mag)[g_.mag_index].reshape(n_int, 3 * s),
+            "dt": g_.dt_s.reshape(n_int, s * L),
+            "ya": g_.gyro_a.reshape(n_int, 3 * s * L),
+            "yb": g_.gyro_b.reshape(n_int, 3 * s * L),
+        }
+        data = np.concatenate([cols[k] for k, _ in data_layout(s, L)], axis=1)  # n_int x n_data
+        return np.concatenate([gvec, data.reshape(-1)])
+
+    # ----------------------------------------------------------------- the solve
+    def solver(self, ipopt_options: dict | None = None):
+        if self._solver is None:
+            opts = {
+                "hess_lag": self._hess_lag,
+                "grad_f": self._grad_f,
+                "calc_lam_p": False,
+                "calc_lam_x": False,
+                "print_time": False,
+                "ipopt.print_level": 0,
+                "ipopt.sb": "yes",
+                "ipopt.tol": 1e-10,
+                "ipopt.acceptable_tol": 1e-8,
+                "ipopt.max_iter": 200,
+                "ipopt.linear_solver": "mumps",
+            }
+            opts.update(ipopt_options or {})
+            self._solver = ca.nlpsol("joint", "ipopt", {"x": self._x, "p": self._p, "f": self._f}, opts)
+        return self._solver
+
+
+def hessian_pattern(n_int: int):
+    """Sparsity of triu(J^T J) and, per nonzero, its index in the stacked block values.
+
+    Stacked values: vec(H_tt) (23x23), vec(H_tp) (23 x 3n), vec(H_pp) (3 x 3n,
+    diagonal blocks side by side), vec(O) (3 x 3n, block k couples node k to k+1).
+    """
+    G = N_GLOBAL
+    o_tp = G * G
+    o_pp = o_tp + G * 3 * n_int
+    o_o = o_pp + 9 * n_int
+    colptr = [0]
+    rows: list[int] = []
+    perm: list[int] = []
+    for j in range(G):
+        rows.extend(range(j + 1))
+        perm.extend(i + G * j for i in range(j + 1))
+        colptr.append(len(rows))
+    # node columns, vectorised per component then interleaved
+    node = np.arange(1, n_int + 1)
+    per_col_rows = []
+    per_col_perm = []
+    for c in range(3):
+        col_in_tp = 3 * (node - 1) + c
+        r_theta = np.tile(np.arange(G), (n_int, 1))
+        p_theta = o_tp + np.arange(G)[None, :] + G * col_in_tp[:, None]
+        r_off = G + 3 * (node[:, None] - 2) + np.arange(3)[None, :]
+        p_off = o_o + np.arange(3)[None, :] + 3 * (3 * (node[:, None] - 1) + c)
+        r_diag = G + 3 * (node[:, None] - 1) + np.arange(c + 1)[None, :]
+        p_diag = o_pp + np.arange(c + 1)[None, :] + 3 * col_in_tp[:, None]
+        per_col_rows.append((r_theta, r_off, r_diag))
+        per_col_perm.append((p_theta, p_off, p_diag))
+    for n_i in range(n_int):
+        for c in range(3):
+            r_theta, r_off, r_diag = per_col_rows[c]
+            p_theta, p_off, p_diag = per_col_perm[c]
+            rows.extend(r_theta[n_i].tolist())
+            perm.extend(p_theta[n_i].tolist())
+            if n_i >= 1:
+                rows.extend(r_off[n_i].tolist())
+                perm.extend(p_off[n_i].tolist())
+            rows.extend(r_diag[n_i].tolist())
+            perm.extend(p_diag[n_i].tolist())
+            colptr.append(len(rows))
+    n_x = G + 3 * n_int
+    return ca.Sparsity(n_x, n_x, colptr, rows), perm

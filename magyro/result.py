@@ -1,0 +1,154 @@
+"""The calibration result: QR split, uncertainty propagation, JSON (SPEC section 4), table."""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import so3
+from .errors import InputError
+
+SCHEMA = "magyro.calibration/1"
+UPPER = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+
+
+def qr_split(K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(C_b_m, K_g) with K = C_b_m K_g, K_g upper triangular with positive diagonal.
+
+    Raises InputError when C_b_m would be improper (det -1): the magnetometer
+    axes are then a mirror image of the gyro axes.
+    """
+    Q, Rq = np.linalg.qr(K)
+    D = np.diag(np.sign(np.diag(Rq)))
+    C, Kg = Q @ D, D @ Rq
+    if np.linalg.det(C) < 0:
+        raise InputError(
+            "the magnetometer axes are a mirror image of the gyro axes (det C_b_m = -1): the axis mapping is "
+            "wrong, as on chips whose magnetometer is left-handed; negate or swap magnetometer axes "
+            "(e.g. swap mx and my and negate mz) and solve again"
+        )
+    return C, Kg
+
+
+@dataclass
+class Calibration:
+    """Everything `magyro solve` reports. Matrices as numpy arrays."""
+
+    K_g: np.ndarray
+    bias_rad_s: np.ndarray
+    K: np.ndarray
+    eps_rad_s: np.ndarray
+    C_b_m: np.ndarray
+    R: np.ndarray
+    h: np.ndarray
+    mag_unit: str
+    field_i: np.ndarray
+    std: dict                      # one-sigma: K_g, bias_deg_s, misalignment_deg, R, h, K, field_i
+    observability: dict            # rank, condition, ...
+    solver: dict                   # method, status, iterations, seconds, ...
+    noise: dict = field(default_factory=dict)
+    fit: dict = field(default_factory=dict)
+    covariance_theta: np.ndarray | None = None  # 23x23, internal correction parameters
+
+    @property
+    def bias_deg_s(self) -> np.ndarray:
+        return np.rad2deg(self.bias_rad_s)
+
+    @property
+    def euler_deg(self) -> np.ndarray:
+        return so3.dcm_to_euler(self.C_b_m)
+
+    def to_dict(self) -> dict:
+        L = lambda a: np.asarray(a, dtype=float).tolist()  # noqa: E731
+        return {
+            "schema": SCHEMA,
+            "gyro": {
+                "K_g": L(self.K_g),
+                "bias_rad_s": L(self.bias_rad_s),
+                "bias_deg_s": L(self.bias_deg_s),
+                "K": L(self.K),
+                "eps_m_rad_s": L(self.eps_rad_s),
+            },
+            "misalignment": {"C_b_m": L(self.C_b_m), "euler_deg": L(self.euler_deg)},
+            "magnetometer": {"R": L(self.R), "h": L(self.h), "unit": self.mag_unit,
+                             "field_strength": float(1.0 / np.cbrt(np.prod(np.diag(self.R))))},
+            "field_i": L(self.field_i),
+            "std": {k: L(v) for k, v in self.std.items()},
+            "observability": self.observability,
+            "solver": self.solver,
+            "noise": self.noise,
+            "fit": self.fit,
+        }
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2)
+
+    def table(self) -> str:
+        """A short, truth-free human summary: estimate +/- one sigma (like the paper's Tables I/II)."""
+        s = self.std
+        lines = []
+        lines.append(f"gyro K_g (scale on diagonal, non-orthogonality above), +/- 1 sigma")
+        for i in range(3):
+            cells = []
+            for j in range(3):
+                if j < i:
+                    cells.append(" " * 22)
+                else:
+                    cells.append(f"{self.K_g[i, j]:9.5f} +/- {s['K_g'][i][j]:8.5f}")
+            lines.append("  " + "  ".join(cells))
+        b, sb = self.bias_deg_s, s["bias_deg_s"]
+        lines.append("gyro bias (deg/s)      " + "  ".join(f"{b[i]:+8.4f} +/- {sb[i]:.4f}" for i in range(3)))
+        e, se = self.euler_deg, s["misalignment_deg"]
+        lines.append("misalignment C_b_m, roll pitch yaw (deg)  " + "  ".join(f"{e[i]:+8.3f} +/- {se[i]:.3f}" for i in range(3)))
+        h, sh = self.h, s["h"]
+        lines.append(f"magnetometer h ({self.mag_unit})  " + "  ".join(f"{h[i]:+.4g} +/- {sh[i]:.2g}" for i in range(3)))
+        lines.append("magnetometer R diagonal  " + "  ".join(f"{self.R[i, i]:.5g} +/- {s['R'][i][i]:.2g}" for i in range(3)))
+        ob = self.observability
+        lines.append(f"observability: rank {ob['rank']} of 12, condition {ob['condition']:.3g}")
+        sv = self.solver
+        lines.append(f"solver: {sv['method']} {sv['status']}, {sv['iterations']} iterations, {sv['seconds']:.2f} s")
+        return "\n".join(lines)
+
+
+def misalignment_vector(C_ref: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """d with C = C_ref Exp(d)."""
+    return so3.log_so3(C_ref.T @ C)
+
+
+def reported_vector(K, eps, S, h, m_i, C_ref) -> np.ndarray:
+    """The reported parameters as one vector, for uncertainty propagation.
+
+    Layout: K_g upper (6), bias deg/s (3), misalignment d deg (3), R upper (6),
+    h (3), K (9, row-major), field_i (3).
+    """
+    C, Kg = qr_split(K)
+    R = np.linalg.inv(S)
+    return np.concatenate([
+        [Kg[i, j] for i, j in UPPER],
+        np.rad2deg(C.T @ eps),
+        np.rad2deg(misalignment_vector(C_ref, C)),
+        [R[i, j] for i, j in UPPER],
+        h,
+        K.reshape(-1),
+        m_i,
+    ])
+
+
+def std_from_covariance(cov_out: np.ndarray) -> dict:
+    """Unpack the diagonal of the reported-vector covariance into the SPEC `std` layout."""
+    sd = np.sqrt(np.maximum(np.diag(cov_out), 0.0))
+    Kg = np.zeros((3, 3))
+    R = np.zeros((3, 3))
+    for n, (i, j) in enumerate(UPPER):
+        Kg[i, j] = sd[n]
+        R[i, j] = sd[15 + n]
+    return {
+        "K_g": Kg,
+        "bias_deg_s": sd[6:9],
+        "misalignment_deg": sd[9:12],
+        "R": R,
+        "h": sd[21:24],
+        "K": sd[24:33].reshape(3, 3),
+        "field_i": sd[33:36],
+    }
