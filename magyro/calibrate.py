@@ -25,6 +25,7 @@ from .result import Calibration, reported_vector, std_from_covariance
 from .session import Session
 
 NODE_RATE_HZ = 100.0
+MAX_DECREMENT = 1e-3  # chi^2 units: a step that would remove less than this changes nothing that matters
 MIN_RATE_RATIO = 0.1
 
 
@@ -145,12 +146,26 @@ def banded_upper(H_pp_triu) -> np.ndarray:
 
 def marginal_information(H_triu) -> np.ndarray:
     """Information of the 23 calibration corrections with the trajectory marginalised out (Schur complement)."""
+    H_tt, H_tp, ab = split_hessian(H_triu)
+    return H_tt - H_tp @ solveh_banded(ab, H_tp.T, check_finite=False)
+
+
+def split_hessian(H_triu):
+    """(H_tt dense symmetric, H_tp dense, attitude block in banded storage) of triu(J^T J)."""
     G = N_GLOBAL
     H_tt = H_triu[:G, :G].toarray()
-    H_tt = H_tt + np.triu(H_tt, 1).T
-    H_tp = H_triu[:G, G:].toarray()
-    X = solveh_banded(banded_upper(H_triu[G:, G:]), H_tp.T, check_finite=False)
-    return H_tt - H_tp @ X
+    return H_tt + np.triu(H_tt, 1).T, H_triu[:G, G:].toarray(), banded_upper(H_triu[G:, G:])
+
+
+def gauss_newton_decrement(H_triu, grad) -> float:
+    """g^T H^-1 g: how much the objective (in chi^2 units) a further Gauss-Newton step would still remove."""
+    H_tt, H_tp, ab = split_hessian(H_triu)
+    g_t, g_p = grad[:N_GLOBAL], grad[N_GLOBAL:]
+    Dinv_gp = solveh_banded(ab, g_p, check_finite=False)
+    Dinv_B = solveh_banded(ab, H_tp.T, check_finite=False)
+    x_t = np.linalg.solve(H_tt - H_tp @ Dinv_B, g_t - H_tp @ Dinv_gp)
+    x_p = Dinv_gp - Dinv_B @ x_t
+    return float(grad @ np.concatenate([x_t, x_p]))
 
 
 def to_scipy(dm):
@@ -189,10 +204,16 @@ def calibrate(session: Session, options: Options | None = None) -> Calibration:
     sol = solver(x0=np.zeros(problem.n_x), p=p)
     solve_s = time.perf_counter() - t_solve
     stats = solver.stats()
-    if not stats["success"]:
-        raise SolverError(f"the solver did not converge: {stats['return_status']} after {stats['iter_count']} iterations")
     x = np.array(sol["x"]).ravel()
-    return assemble(problem, prep, grid, p, x, stats, solve_s, time.perf_counter() - t_start)
+    H = to_scipy(problem.hessian_function(x, p))
+    decrement = gauss_newton_decrement(H, np.array(problem.gradient_function(x, p)).ravel())
+    if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
+        raise SolverError(
+            f"the solver did not converge: {stats['return_status']} after {stats['iter_count']} iterations "
+            f"(a further Gauss-Newton step would still reduce chi^2 by {decrement:.3g})"
+        )
+    stats = dict(stats, gauss_newton_decrement=decrement)
+    return assemble(problem, prep, grid, p, x, H, stats, solve_s, time.perf_counter() - t_start)
 
 
 def residual_summary(problem: JointProblem, x, p) -> dict:
@@ -209,7 +230,7 @@ def residual_summary(problem: JointProblem, x, p) -> dict:
     }
 
 
-def assemble(problem, prep: Prepared, grid: Grid, p, x, stats, solve_s: float, total_s: float) -> Calibration:
+def assemble(problem, prep: Prepared, grid: Grid, p, x, H, stats, solve_s: float, total_s: float) -> Calibration:
     g = p[: problem.n_glob_p]
     theta = x[:N_GLOBAL]
     S, h, K, eps, m_i = (np.array(v) for v in problem.physical_function(theta, g))
@@ -218,7 +239,6 @@ def assemble(problem, prep: Prepared, grid: Grid, p, x, stats, solve_s: float, t
 
     C, Kg = qr_split(K)
     fit = residual_summary(problem, x, p)
-    H = to_scipy(problem.hessian_function(x, p))
     cov_theta = np.linalg.inv(marginal_information(H)) * fit["variance_factor"]
     std = std_from_covariance(propagate(problem, theta, g, cov_theta, C))
     a = prep.analysis
@@ -228,7 +248,8 @@ def assemble(problem, prep: Prepared, grid: Grid, p, x, stats, solve_s: float, t
         observability={"rank": a.rank, "condition": a.condition, "tolerance": a.tolerance,
                        "eigenvalues_normalised": a.eigenvalues_normalised.tolist()},
         solver={"method": "nls", "status": stats["return_status"], "iterations": int(stats["iter_count"]),
-                "seconds": float(solve_s), "total_seconds": float(total_s), "nodes": int(grid.nodes),
+                "seconds": float(solve_s), "total_seconds": float(total_s),
+                "gauss_newton_decrement": stats["gauss_newton_decrement"], "nodes": int(grid.nodes),
                 "stride": int(grid.stride)},
         noise={"gyro_density_rad_s_sqrt_hz": prep.gyro_density, "mag_std": prep.sigma_mag},
         fit=fit,

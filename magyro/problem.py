@@ -270,6 +270,7 @@ class JointProblem:
         grad_phi = ca.horzcat(g_l[:, 1:], ca.MX.zeros(3, 1)) + g_r
         grad = ca.vertcat(ca.sum2(g_t), ca.vec(grad_phi))
         self._grad_f = ca.Function("nlp_grad_f", [x, p], [0.5 * ca.sum2(ssq), grad], ["x", "p"], ["f", "grad_f_x"])
+        self.gradient_function = ca.Function("gradient", [x, p], [grad])
 
         JthT, CL, CR, DL, DR, O = self.gn_kernel.map(self.n_int)(theta, phi_k, phi_k1, g, D)
         n3 = 3 * self.n_int

@@ -11,6 +11,11 @@ from .errors import InputError
 
 SCHEMA = "magyro.calibration/1"
 UPPER = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+# layout of the reported vector (reported_vector), used to unpack its covariance
+REPORTED = {
+    "K_g": slice(0, 6), "bias_deg_s": slice(6, 9), "misalignment_deg": slice(9, 12), "R": slice(12, 18),
+    "h": slice(18, 21), "K": slice(21, 30), "field_i": slice(30, 33),
+}
 
 
 def qr_split(K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -141,14 +146,14 @@ def std_from_covariance(cov_out: np.ndarray) -> dict:
     Kg = np.zeros((3, 3))
     R = np.zeros((3, 3))
     for n, (i, j) in enumerate(UPPER):
-        Kg[i, j] = sd[n]
-        R[i, j] = sd[15 + n]
+        Kg[i, j] = sd[REPORTED["K_g"].start + n]
+        R[i, j] = sd[REPORTED["R"].start + n]
     return {
         "K_g": Kg,
-        "bias_deg_s": sd[6:9],
-        "misalignment_deg": sd[9:12],
+        "bias_deg_s": sd[REPORTED["bias_deg_s"]],
+        "misalignment_deg": sd[REPORTED["misalignment_deg"]],
         "R": R,
-        "h": sd[21:24],
-        "K": sd[24:33].reshape(3, 3),
-        "field_i": sd[33:36],
+        "h": sd[REPORTED["h"]],
+        "K": sd[REPORTED["K"]].reshape(3, 3),
+        "field_i": sd[REPORTED["field_i"]],
     }

@@ -34,7 +34,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -520,15 +519,7 @@ def truth_dict(problem: Problem, seed: int, noise_scale: float = 1.0) -> dict:
 
 
 def write_truth(truth: dict, path: str | os.PathLike) -> None:
-    """Write the truth JSON atomically: a temp file in the same folder, then os.replace."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(truth, fh, indent=2)
-            fh.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    """Write the truth JSON atomically (whole or not at all)."""
+    from .io import write_text_atomically
+
+    write_text_atomically(path, json.dumps(truth, indent=2) + "\n")
