@@ -21,7 +21,7 @@ from .errors import InputError, ObservabilityError, SolverError
 from .initial import linear_gyro_estimate
 from .observability import ObservabilityAnalysis, analyse
 from .problem import N_GLOBAL, Grid, JointProblem, Linearisation, build_grid
-from .result import Calibration, reported_vector, std_from_covariance
+from .result import Calibration, qr_split, reported_vector, std_from_covariance
 from .session import Session
 
 NODE_RATE_HZ = 100.0
@@ -144,28 +144,34 @@ def banded_upper(H_pp_triu) -> np.ndarray:
     return ab
 
 
-def marginal_information(H_triu) -> np.ndarray:
-    """Information of the 23 calibration corrections with the trajectory marginalised out (Schur complement)."""
-    H_tt, H_tp, ab = split_hessian(H_triu)
-    return H_tt - H_tp @ solveh_banded(ab, H_tp.T, check_finite=False)
+@dataclass(frozen=True)
+class Reduced:
+    """J^T J with the trajectory eliminated: the marginal information of the 23 calibration corrections."""
+
+    information: np.ndarray   # Schur complement H_tt - H_tp D^-1 H_pt
+    H_tp: np.ndarray
+    D_banded: np.ndarray      # attitude block D, upper banded storage
+    Dinv_Hpt: np.ndarray      # D^-1 H_pt
 
 
-def split_hessian(H_triu):
-    """(H_tt dense symmetric, H_tp dense, attitude block in banded storage) of triu(J^T J)."""
+def reduce_hessian(H_triu) -> Reduced:
+    """Eliminate the attitudes from triu(J^T J) by a banded solve (no dense N x N inverse)."""
     G = N_GLOBAL
     H_tt = H_triu[:G, :G].toarray()
-    return H_tt + np.triu(H_tt, 1).T, H_triu[:G, G:].toarray(), banded_upper(H_triu[G:, G:])
+    H_tt = H_tt + np.triu(H_tt, 1).T
+    H_tp = H_triu[:G, G:].toarray()
+    ab = banded_upper(H_triu[G:, G:])
+    Dinv_Hpt = solveh_banded(ab, H_tp.T, check_finite=False)
+    return Reduced(H_tt - H_tp @ Dinv_Hpt, H_tp, ab, Dinv_Hpt)
 
 
-def gauss_newton_decrement(H_triu, grad) -> float:
-    """g^T H^-1 g: how much the objective (in chi^2 units) a further Gauss-Newton step would still remove."""
-    H_tt, H_tp, ab = split_hessian(H_triu)
+def gauss_newton_decrement(red: Reduced, grad) -> float:
+    """g^T H^-1 g: how much the objective (chi^2 units) a further Gauss-Newton step would still remove."""
     g_t, g_p = grad[:N_GLOBAL], grad[N_GLOBAL:]
-    Dinv_gp = solveh_banded(ab, g_p, check_finite=False)
-    Dinv_B = solveh_banded(ab, H_tp.T, check_finite=False)
-    x_t = np.linalg.solve(H_tt - H_tp @ Dinv_B, g_t - H_tp @ Dinv_gp)
-    x_p = Dinv_gp - Dinv_B @ x_t
-    return float(grad @ np.concatenate([x_t, x_p]))
+    Dinv_gp = solveh_banded(red.D_banded, g_p, check_finite=False)
+    x_t = np.linalg.solve(red.information, g_t - red.H_tp @ Dinv_gp)
+    x_p = Dinv_gp - red.Dinv_Hpt @ x_t
+    return float(g_t @ x_t + g_p @ x_p)
 
 
 def to_scipy(dm):
@@ -190,6 +196,31 @@ def propagate(problem: JointProblem, theta, g, cov_theta, C_ref) -> np.ndarray:
     return J @ cov_theta @ J.T
 
 
+def predicted_std(prep: Prepared, options: Options | None = None) -> dict:
+    """One-sigma accuracy this recording can give, before solving.
+
+    The Gauss-Newton (Fisher) information of the joint problem at the initial
+    estimate, with the session's noise levels, trajectory marginalised out and
+    propagated like the solved std. Entries are inf where the information is
+    singular (unobservable).
+    """
+    options = options or Options()
+    s = prep.session
+    grid = build_grid(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, options.stride or default_stride(s))
+    lin = linearise(prep, grid)
+    problem = JointProblem(grid, compiled=options.compiled)
+    p = problem.parameters(lin, s.mag, prep.sigma_mag, prep.gyro_density)
+    x0 = np.zeros(problem.n_x)
+    info = reduce_hessian(to_scipy(problem.hessian_function(x0, p))).information
+    lam = np.linalg.eigvalsh(info)
+    if lam[0] <= lam[-1] * 1e-14:
+        return {k: np.full_like(np.asarray(v, dtype=float), np.inf) for k, v in
+                std_from_covariance(np.eye(33)).items()}
+    C0, _ = qr_split(lin.K0)
+    g = p[: problem.n_glob_p]
+    return std_from_covariance(propagate(problem, np.zeros(N_GLOBAL), g, np.linalg.inv(info), C0))
+
+
 def calibrate(session: Session, options: Options | None = None) -> Calibration:
     """Calibrate gyro and magnetometer from one session (the joint least squares)."""
     options = options or Options()
@@ -205,15 +236,15 @@ def calibrate(session: Session, options: Options | None = None) -> Calibration:
     solve_s = time.perf_counter() - t_solve
     stats = solver.stats()
     x = np.array(sol["x"]).ravel()
-    H = to_scipy(problem.hessian_function(x, p))
-    decrement = gauss_newton_decrement(H, np.array(problem.gradient_function(x, p)).ravel())
+    reduced = reduce_hessian(to_scipy(problem.hessian_function(x, p)))
+    decrement = gauss_newton_decrement(reduced, np.array(problem.gradient_function(x, p)).ravel())
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
         raise SolverError(
             f"the solver did not converge: {stats['return_status']} after {stats['iter_count']} iterations "
             f"(a further Gauss-Newton step would still reduce chi^2 by {decrement:.3g})"
         )
     stats = dict(stats, gauss_newton_decrement=decrement)
-    return assemble(problem, prep, grid, p, x, H, stats, solve_s, time.perf_counter() - t_start)
+    return assemble(problem, prep, grid, p, x, reduced, stats, solve_s, time.perf_counter() - t_start)
 
 
 def residual_summary(problem: JointProblem, x, p) -> dict:
@@ -230,16 +261,14 @@ def residual_summary(problem: JointProblem, x, p) -> dict:
     }
 
 
-def assemble(problem, prep: Prepared, grid: Grid, p, x, H, stats, solve_s: float, total_s: float) -> Calibration:
+def assemble(problem, prep: Prepared, grid: Grid, p, x, reduced: Reduced, stats, solve_s: float, total_s: float) -> Calibration:
     g = p[: problem.n_glob_p]
     theta = x[:N_GLOBAL]
     S, h, K, eps, m_i = (np.array(v) for v in problem.physical_function(theta, g))
     h, eps, m_i = h.ravel(), eps.ravel(), m_i.ravel()
-    from .result import qr_split
-
     C, Kg = qr_split(K)
     fit = residual_summary(problem, x, p)
-    cov_theta = np.linalg.inv(marginal_information(H)) * fit["variance_factor"]
+    cov_theta = np.linalg.inv(reduced.information) * fit["variance_factor"]
     std = std_from_covariance(propagate(problem, theta, g, cov_theta, C))
     a = prep.analysis
     return Calibration(

@@ -116,34 +116,65 @@ def quat_to_dcm(q_wxyz: np.ndarray) -> np.ndarray:
 
 
 def dcm_to_quat(C: np.ndarray) -> np.ndarray:
-    """Unit quaternion [w, x, y, z] with w >= 0 of a rotation matrix (single matrix)."""
+    """Unit quaternion(s) [w, x, y, z], w >= 0, of rotation matrices (3, 3) or (N, 3, 3).
+
+    Shepperd's method: each row is built from whichever of 1 + trace and
+    1 + 2 C_ii - trace is largest, so no division by a small number.
+    """
     C = np.asarray(C, dtype=float)
-    K = np.array(
-        [
-            [C[0, 0] - C[1, 1] - C[2, 2], C[1, 0] + C[0, 1], C[2, 0] + C[0, 2], C[2, 1] - C[1, 2]],
-            [C[1, 0] + C[0, 1], C[1, 1] - C[0, 0] - C[2, 2], C[2, 1] + C[1, 2], C[0, 2] - C[2, 0]],
-            [C[2, 0] + C[0, 2], C[2, 1] + C[1, 2], C[2, 2] - C[0, 0] - C[1, 1], C[1, 0] - C[0, 1]],
-            [C[2, 1] - C[1, 2], C[0, 2] - C[2, 0], C[1, 0] - C[0, 1], C[0, 0] + C[1, 1] + C[2, 2]],
-        ]
-    ) / 3.0
-    w, V = np.linalg.eigh(K)
-    x, y, z, qw = V[:, -1]
-    q = np.array([qw, x, y, z])
-    return q if qw >= 0 else -q
+    if C.ndim == 2:
+        return dcm_to_quat(C[None])[0]
+    tr = np.trace(C, axis1=1, axis2=2)
+    a, b, c = C[:, 2, 1] - C[:, 1, 2], C[:, 0, 2] - C[:, 2, 0], C[:, 1, 0] - C[:, 0, 1]
+    xy, xz, yz = C[:, 0, 1] + C[:, 1, 0], C[:, 0, 2] + C[:, 2, 0], C[:, 1, 2] + C[:, 2, 1]
+    s4 = np.column_stack([1 + tr, 1 + 2 * C[:, 0, 0] - tr, 1 + 2 * C[:, 1, 1] - tr, 1 + 2 * C[:, 2, 2] - tr])
+    big = np.argmax(s4, axis=1)
+    r = np.sqrt(np.maximum(s4[np.arange(len(C)), big], 1e-300))
+    candidates = np.stack([
+        np.stack([r * r, a, b, c], 1),
+        np.stack([a, r * r, xy, xz], 1),
+        np.stack([b, xy, r * r, yz], 1),
+        np.stack([c, xz, yz, r * r], 1),
+    ])  # (4, N, 4)
+    q = candidates[big, np.arange(len(C))] / (2 * r[:, None])
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return np.where(q[:, :1] < 0, -q, q)
+
+
+def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton products of quaternion stacks (..., 4)."""
+    aw, av = a[..., :1], a[..., 1:]
+    bw, bv = b[..., :1], b[..., 1:]
+    return np.concatenate([aw * bw - np.sum(av * bv, -1, keepdims=True), aw * bv + bw * av + np.cross(av, bv)], -1)
+
+
+def exp_quat(phi: np.ndarray) -> np.ndarray:
+    """Quaternions of Exp(phi) for rotation vectors (N, 3)."""
+    th = np.linalg.norm(phi, axis=-1, keepdims=True)
+    half = 0.5 * th
+    sinc = np.where(th < 1e-8, 0.5 - th**2 / 48.0, np.sin(half) / np.where(th < 1e-8, 1.0, th))
+    return np.concatenate([np.cos(half), sinc * phi], -1)
+
+
+def cumulative_quat_product(q: np.ndarray) -> np.ndarray:
+    """Prefix products q0, q0 q1, q0 q1 q2, ... by a log-depth scan (vectorised)."""
+    out = q.copy()
+    shift = 1
+    while shift < len(out):
+        out[shift:] = quat_multiply(out[:-shift], out[shift:])
+        shift *= 2
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
 def integrate_body_rates(t_s: np.ndarray, omega_rad_s: np.ndarray, C0: np.ndarray | None = None) -> np.ndarray:
     """Attitudes C(t_k) from body rates sampled at t_k, dC/dt = C (w x).
 
-    Second-order accurate with a coning term: each step rotates by
-    (w_a + w_b)/2 dt + dt^2/12 (w_a x w_b), exact for rates linear in time up to
-    third order. Returns an (N, 3, 3) array; C(t_0) = C0 (identity by default).
+    Each step rotates by (w_a + w_b)/2 dt + dt^2/12 (w_a x w_b) (third-order
+    local error for rates linear in time); the steps are composed by a
+    vectorised prefix product. Returns (N, 3, 3); C(t_0) = C0 (identity by default).
     """
     dt = np.diff(t_s)[:, None]
     wa, wb = omega_rad_s[:-1], omega_rad_s[1:]
-    steps = exp_so3(0.5 * (wa + wb) * dt + (dt**2 / 12.0) * np.cross(wa, wb))
-    out = np.empty((len(t_s), 3, 3))
-    out[0] = np.eye(3) if C0 is None else C0
-    for k in range(len(steps)):
-        out[k + 1] = out[k] @ steps[k]
-    return out
+    steps = exp_quat(0.5 * (wa + wb) * dt + (dt**2 / 12.0) * np.cross(wa, wb))
+    q0 = np.array([[1.0, 0.0, 0.0, 0.0]]) if C0 is None else dcm_to_quat(C0)[None]
+    return quat_to_dcm(cumulative_quat_product(np.concatenate([q0, steps])))
