@@ -1,12 +1,17 @@
 """The whole calibration: from a Session to a Calibration (the Python API behind `magyro solve`).
 
-    1. noise levels (given, or estimated from the data)
+    1. noise levels (given, or estimated from the data); rests found, the ones
+       at both ends trimmed (the paper excludes them)
     2. magnetometer ellipsoid (paper step 1)          -> R0, h0, calibrated field m^m
     3. observability gate on the integral of M^T M    -> exit 3 when rank < 12
     4. linear gyro estimate (paper eq. 13)            -> K0, eps0
     5. nominal attitude by integrating the gyro with K0, eps0
-    6. the joint least squares (problem.JointProblem), IPOPT
-    7. marginal covariance of the calibration parameters, QR split, std
+    6. the joint least squares (problem.JointProblem), IPOPT; re-solved warm (at
+       most twice) when the time offset moved the gyro look-up or the
+       magnetometer noise proved different from the estimate (robust
+       variance-component step)
+    7. marginal covariance of the calibration parameters, QR split, std;
+       rest-period bias check; windows where the field does not fit
 """
 from __future__ import annotations
 
@@ -16,15 +21,21 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import solveh_banded
 
-from . import magfit, noise, so3
+from . import magfit, noise, rests, so3
 from .errors import InputError, ObservabilityError, SolverError
 from .initial import linear_gyro_estimate
 from .observability import ObservabilityAnalysis, analyse
-from .problem import N_GLOBAL, Grid, JointProblem, Linearisation, build_grid
-from .result import Calibration, qr_split, reported_vector, std_from_covariance
+from .problem import N_GLOBAL, TIME_OFFSET_SCALE_S, Grid, JointProblem, Linearisation, build_grid
+from .result import N_REPORTED, Calibration, qr_split, reported_vector, std_from_covariance
 from .session import Session
 
 NODE_RATE_HZ = 100.0
+MAX_PASSES = 3
+NOISE_RESCALE_TOLERANCE = 0.2     # re-solve when the robust residual scale is off by more than this
+TIME_OFFSET_RELOOK_S = 1e-3       # re-solve when the offset moved the gyro look-up by more than this
+CHI2_3DOF_MEDIAN = 2.3660         # median of |r|^2 for a 3-vector of unit normals
+SUSPECT_WINDOW_S = 1.0
+SUSPECT_FACTOR = 3.0
 MAX_DECREMENT = 1e-3  # chi^2 units: a step that would remove less than this changes nothing that matters
 MIN_RATE_RATIO = 0.1
 
@@ -39,18 +50,25 @@ class Options:
     force: bool = False                     # solve even when the observability check fails
     max_iter: int = 100
     compiled: bool = True                   # compiled CasADi kernels (cached on disk)
+    estimate_time_offset: bool = True       # magnetometer-to-gyro lag as a decision variable
+    time_offset_s: float = 0.0              # its starting value (or its fixed value)
+    loss: str = "l2"                        # "l2" or "huber" on the magnetometer residuals
+    huber_threshold: float = 3.0            # in noise sigmas
+    trim_rests: bool = True                 # drop the rests at both ends (the paper does)
+    reweight_noise: bool = True             # robust variance-component step on the magnetometer noise
 
 
 @dataclass
 class Prepared:
     """Everything before the solve: noise, step-1 fit, gate, initial estimates."""
 
-    session: Session
+    session: Session                # trimmed to the moving span when Options.trim_rests
     sigma_mag: float
     gyro_density: float
     fit: magfit.EllipsoidFit
     field_m: np.ndarray
     analysis: ObservabilityAnalysis
+    rests: rests.Rests | None = None
 
 
 def noise_levels(session: Session, options: Options) -> tuple[float, float]:
@@ -85,9 +103,12 @@ def check_gyro_unit(session: Session, field_m: np.ndarray) -> None:
 
 
 def prepare(session: Session, options: Options) -> Prepared:
-    """Steps 1-3: noise, ellipsoid, observability. Raises ObservabilityError unless forced."""
+    """Steps 1-3: noise, rests, ellipsoid, observability. Raises ObservabilityError unless forced."""
     sigma_mag, density = noise_levels(session, options)
     gyro_std = density * np.sqrt(session.gyro_rate_hz)
+    found = rests.find_rests(session, gyro_std, sigma_mag)
+    if options.trim_rests and found.segments_s:
+        session = rests.trimmed(session, *rests.moving_span(session, found))
     try:
         fit = magfit.fit_ellipsoid(session.mag, sigma_mag)
     except magfit.DegenerateCloud as cloud:
@@ -104,7 +125,7 @@ def prepare(session: Session, options: Options) -> Prepared:
         raise ObservabilityError(
             f"the motion does not excite every gyro parameter: {analysis.summary()} (--force solves anyway)", analysis
         )
-    return Prepared(session, sigma_mag, density, fit, field, analysis)
+    return Prepared(session, sigma_mag, density, fit, field, analysis, found)
 
 
 def nominal_attitudes(session: Session, K0, eps0, t_node_s) -> np.ndarray:
@@ -154,9 +175,8 @@ class Reduced:
     Dinv_Hpt: np.ndarray      # D^-1 H_pt
 
 
-def reduce_hessian(H_triu) -> Reduced:
-    """Eliminate the attitudes from triu(J^T J) by a banded solve (no dense N x N inverse)."""
-    G = N_GLOBAL
+def reduce_hessian(H_triu, G: int) -> Reduced:
+    """Eliminate the attitudes (after the first G unknowns) from triu(J^T J) by a banded solve."""
     H_tt = H_triu[:G, :G].toarray()
     H_tt = H_tt + np.triu(H_tt, 1).T
     H_tp = H_triu[:G, G:].toarray()
@@ -167,7 +187,8 @@ def reduce_hessian(H_triu) -> Reduced:
 
 def gauss_newton_decrement(red: Reduced, grad) -> float:
     """g^T H^-1 g: how much the objective (chi^2 units) a further Gauss-Newton step would still remove."""
-    g_t, g_p = grad[:N_GLOBAL], grad[N_GLOBAL:]
+    G = red.H_tp.shape[0]
+    g_t, g_p = grad[:G], grad[G:]
     Dinv_gp = solveh_banded(red.D_banded, g_p, check_finite=False)
     x_t = np.linalg.solve(red.information, g_t - red.H_tp @ Dinv_gp)
     x_p = Dinv_gp - red.Dinv_Hpt @ x_t
@@ -182,18 +203,35 @@ def to_scipy(dm):
 
 
 def propagate(problem: JointProblem, theta, g, cov_theta, C_ref) -> np.ndarray:
-    """Covariance of the reported vector by central differences through the QR split."""
+    """Covariance of the reported vector by central differences through R = S^-1 and the QR split."""
     def f(th):
-        S, h, K, eps, m = (np.array(v) for v in problem.physical_function(th, g))
-        return reported_vector(K, eps.ravel(), S, h.ravel(), m.ravel(), C_ref)
+        S, h, K, eps, m, tau = (np.array(v) for v in problem.physical_function(th, g))
+        return reported_vector(K, eps.ravel(), S, h.ravel(), m.ravel(), C_ref, float(tau.item()))
 
     step = 1e-6
-    J = np.empty((len(f(theta)), N_GLOBAL))
-    for i in range(N_GLOBAL):
-        e = np.zeros(N_GLOBAL)
+    n = problem.n_theta
+    J = np.empty((len(f(theta)), n))
+    for i in range(n):
+        e = np.zeros(n)
         e[i] = step
         J[:, i] = (f(theta + e) - f(theta - e)) / (2 * step)
     return J @ cov_theta @ J.T
+
+
+def build_problem(prep: Prepared, options: Options) -> tuple[Grid, Linearisation, JointProblem]:
+    s = prep.session
+    grid = build_grid(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, options.stride or default_stride(s))
+    lin = linearise(prep, grid)
+    huber = options.huber_threshold if options.loss == "huber" else None
+    if options.loss not in ("l2", "huber"):
+        raise InputError(f"unknown loss '{options.loss}'; use l2 or huber")
+    problem = JointProblem(grid, compiled=options.compiled, estimate_time_offset=options.estimate_time_offset, huber=huber)
+    return grid, lin, problem
+
+
+def problem_parameters(problem: JointProblem, prep: Prepared, lin: Linearisation, sigma_mag: float, tau0_s: float) -> np.ndarray:
+    s = prep.session
+    return problem.parameters(lin, s.mag, sigma_mag, prep.gyro_density, s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, tau0_s)
 
 
 def predicted_std(prep: Prepared, options: Options | None = None) -> dict:
@@ -205,20 +243,65 @@ def predicted_std(prep: Prepared, options: Options | None = None) -> dict:
     singular (unobservable).
     """
     options = options or Options()
-    s = prep.session
-    grid = build_grid(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, options.stride or default_stride(s))
-    lin = linearise(prep, grid)
-    problem = JointProblem(grid, compiled=options.compiled)
-    p = problem.parameters(lin, s.mag, prep.sigma_mag, prep.gyro_density)
-    x0 = np.zeros(problem.n_x)
-    info = reduce_hessian(to_scipy(problem.hessian_function(x0, p))).information
+    grid, lin, problem = build_problem(prep, options)
+    p = problem_parameters(problem, prep, lin, prep.sigma_mag, options.time_offset_s)
+    info = reduce_hessian(to_scipy(problem.hessian_function(np.zeros(problem.n_x), p)), problem.n_theta).information
     lam = np.linalg.eigvalsh(info)
     if lam[0] <= lam[-1] * 1e-14:
-        return {k: np.full_like(np.asarray(v, dtype=float), np.inf) for k, v in
-                std_from_covariance(np.eye(33)).items()}
+        return {k: np.full_like(np.asarray(v, dtype=float), np.inf) for k, v in std_from_covariance(np.eye(N_REPORTED)).items()}
     C0, _ = qr_split(lin.K0)
     g = p[: problem.n_glob_p]
-    return std_from_covariance(propagate(problem, np.zeros(N_GLOBAL), g, np.linalg.inv(info), C0))
+    return std_from_covariance(propagate(problem, np.zeros(problem.n_theta), g, np.linalg.inv(info), C0))
+
+
+def magnetometer_noise_factor(problem: JointProblem, x, p) -> float:
+    """Robust ratio of the magnetometer residual scale to the assumed noise (1 when the noise model holds)."""
+    r = residual_matrix(problem, x, p)[:, :-3].reshape(-1, 3)
+    return float(np.sqrt(np.median(np.sum(r**2, axis=1)) / CHI2_3DOF_MEDIAN))
+
+
+def residual_matrix(problem: JointProblem, x, p) -> np.ndarray:
+    """Whitened residuals, one row per interval: the magnetometer samples, then the gyro mismatch."""
+    return np.array(problem.residual_function(x, p)).reshape(problem.n_int, problem.n_res_per_interval)
+
+
+@dataclass
+class Solution:
+    x: np.ndarray
+    p: np.ndarray
+    sigma_mag: float
+    tau0_s: float
+    stats: dict
+    passes: int
+    seconds: float
+
+
+def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, options: Options) -> Solution:
+    """IPOPT, then at most two warm re-solves: new time-offset look-up, re-weighted magnetometer noise."""
+    solver = problem.solver({"ipopt.max_iter": options.max_iter})
+    sigma_mag, tau0 = prep.sigma_mag, options.time_offset_s
+    x = np.zeros(problem.n_x)
+    seconds, iterations = 0.0, 0
+    for n_pass in range(1, MAX_PASSES + 1):
+        p = problem_parameters(problem, prep, lin, sigma_mag, tau0)
+        t0 = time.perf_counter()
+        x = np.array(solver(x0=x, p=p)["x"]).ravel()
+        seconds += time.perf_counter() - t0
+        stats = dict(solver.stats())
+        iterations += int(stats["iter_count"])
+        stats["iter_count"] = iterations
+        tau = float(problem.physical_function(x[: problem.n_theta], p[: problem.n_glob_p])[5].full().item())
+        factor = magnetometer_noise_factor(problem, x, p) if options.reweight_noise else 1.0
+        moved = abs(tau - tau0) > TIME_OFFSET_RELOOK_S
+        reweight = abs(factor - 1.0) > NOISE_RESCALE_TOLERANCE
+        if n_pass == MAX_PASSES or not (moved or reweight):
+            return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds)
+        if moved and problem.n_theta > N_GLOBAL:
+            x[N_GLOBAL] += (tau0 - tau) / TIME_OFFSET_SCALE_S  # same tau, now about the new tau0
+            tau0 = tau
+        if reweight:
+            sigma_mag *= factor
+    raise AssertionError("unreachable")
 
 
 def calibrate(session: Session, options: Options | None = None) -> Calibration:
@@ -226,61 +309,107 @@ def calibrate(session: Session, options: Options | None = None) -> Calibration:
     options = options or Options()
     t_start = time.perf_counter()
     prep = prepare(session, options)
-    grid = build_grid(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, options.stride or default_stride(session))
-    lin = linearise(prep, grid)
-    problem = JointProblem(grid, compiled=options.compiled)
-    p = problem.parameters(lin, session.mag, prep.sigma_mag, prep.gyro_density)
-    solver = problem.solver({"ipopt.max_iter": options.max_iter})
-    t_solve = time.perf_counter()
-    sol = solver(x0=np.zeros(problem.n_x), p=p)
-    solve_s = time.perf_counter() - t_solve
-    stats = solver.stats()
-    x = np.array(sol["x"]).ravel()
-    reduced = reduce_hessian(to_scipy(problem.hessian_function(x, p)))
-    decrement = gauss_newton_decrement(reduced, np.array(problem.gradient_function(x, p)).ravel())
+    grid, lin, problem = build_problem(prep, options)
+    sol = solve_passes(problem, prep, lin, options)
+    reduced = reduce_hessian(to_scipy(problem.hessian_function(sol.x, sol.p)), problem.n_theta)
+    decrement = gauss_newton_decrement(reduced, np.array(problem.gradient_function(sol.x, sol.p)).ravel())
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
         raise SolverError(
-            f"the solver did not converge: {stats['return_status']} after {stats['iter_count']} iterations "
+            f"the solver did not converge: {sol.stats['return_status']} after {sol.stats['iter_count']} iterations "
             f"(a further Gauss-Newton step would still reduce chi^2 by {decrement:.3g})"
         )
-    stats = dict(stats, gauss_newton_decrement=decrement)
-    return assemble(problem, prep, grid, p, x, reduced, stats, solve_s, time.perf_counter() - t_start)
+    sol.stats["gauss_newton_decrement"] = decrement
+    return assemble(problem, prep, grid, sol, reduced, options, time.perf_counter() - t_start)
 
 
 def residual_summary(problem: JointProblem, x, p) -> dict:
-    r = np.array(problem.residual_function(x, p)).reshape(problem.n_int, problem.n_res_per_interval)
+    r = residual_matrix(problem, x, p)
     n_res = r.size
-    ssr = float(np.sum(r**2))
     dof = n_res - problem.n_x
     return {
         "mag_rms_normalised": float(np.sqrt(np.mean(r[:, :-3] ** 2))),
         "gyro_rms_normalised": float(np.sqrt(np.mean(r[:, -3:] ** 2))),
-        "variance_factor": ssr / dof,
+        "variance_factor": float(np.sum(r**2)) / dof,
         "residuals": int(n_res),
         "unknowns": int(problem.n_x),
     }
 
 
-def assemble(problem, prep: Prepared, grid: Grid, p, x, reduced: Reduced, stats, solve_s: float, total_s: float) -> Calibration:
-    g = p[: problem.n_glob_p]
-    theta = x[:N_GLOBAL]
-    S, h, K, eps, m_i = (np.array(v) for v in problem.physical_function(theta, g))
-    h, eps, m_i = h.ravel(), eps.ravel(), m_i.ravel()
+def suspect_segments(problem: JointProblem, grid: Grid, x, p) -> list[dict]:
+    """Windows where the magnetometer fits far worse than typical (spikes, iron or a magnet near the path)."""
+    r = residual_matrix(problem, x, p)[:, :-3]
+    t = grid.t_node_s[:-1]
+    window = np.floor((t - t[0]) / SUSPECT_WINDOW_S).astype(int)
+    n_w = window.max() + 1
+    ms = np.bincount(window, weights=np.sum(r**2, axis=1), minlength=n_w) / np.maximum(np.bincount(window, minlength=n_w) * r.shape[1], 1)
+    rms = np.sqrt(ms)
+    typical = np.median(rms)
+    bad = rms > SUSPECT_FACTOR * typical
+    out = []
+    for a, b in rests.still_runs(np.arange(n_w, dtype=float), bad, 0.0):
+        a, b = int(a), int(b)
+        out.append({
+            "t0_s": float(t[0] + a * SUSPECT_WINDOW_S), "t1_s": float(t[0] + (b + 1) * SUSPECT_WINDOW_S),
+            "residual_vs_typical": float(rms[a : b + 1].max() / typical),
+        })
+    return out
+
+
+def rest_check(found: rests.Rests | None, K_g: np.ndarray, bias_rad_s: np.ndarray) -> dict | None:
+    """The bias the rests imply (eps_b = -K_g mean(y_rest)) against the estimate."""
+    if found is None or found.gyro_mean_rad_s is None:
+        return None
+    at_rest = -K_g @ found.gyro_mean_rad_s
+    return {
+        **found.to_dict(),
+        "bias_deg_s": np.rad2deg(at_rest).tolist(),
+        "estimate_minus_rest_deg_s": np.rad2deg(bias_rad_s - at_rest).tolist(),
+    }
+
+
+def warnings_for(segments: list[dict], rest: dict | None, analysis: ObservabilityAnalysis) -> list[str]:
+    out = []
+    for seg in segments:
+        out.append(
+            f"the magnetometer does not fit the model during {seg['t0_s']:.1f}-{seg['t1_s']:.1f} s "
+            f"(residual {seg['residual_vs_typical']:.1f}x the typical): a magnet or iron near the path, or a spike; "
+            "check the recording, or use --loss huber to weigh those samples down"
+        )
+    if not analysis.full_rank:
+        out.append(f"solved with --force although the motion is insufficient: {analysis.summary()}")
+    return out
+
+
+def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, reduced: Reduced,
+             options: Options, total_s: float) -> Calibration:
+    g = sol.p[: problem.n_glob_p]
+    theta = sol.x[: problem.n_theta]
+    S, h, K, eps, m_i, tau = (np.array(v) for v in problem.physical_function(theta, g))
+    h, eps, m_i, tau = h.ravel(), eps.ravel(), m_i.ravel(), float(tau.item())
     C, Kg = qr_split(K)
-    fit = residual_summary(problem, x, p)
+    fit = residual_summary(problem, sol.x, sol.p)
     cov_theta = np.linalg.inv(reduced.information) * fit["variance_factor"]
     std = std_from_covariance(propagate(problem, theta, g, cov_theta, C))
+    segments = suspect_segments(problem, grid, sol.x, sol.p)
+    rest = rest_check(prep.rests, Kg, C.T @ eps)
+    fit["suspect_segments"] = segments
     a = prep.analysis
+    stats = sol.stats
     return Calibration(
         K_g=Kg, bias_rad_s=C.T @ eps, K=K, eps_rad_s=eps, C_b_m=C, R=np.linalg.inv(S), h=h,
         mag_unit=prep.session.mag_unit, field_i=m_i, std=std,
         observability={"rank": a.rank, "condition": a.condition, "tolerance": a.tolerance,
                        "eigenvalues_normalised": a.eigenvalues_normalised.tolist()},
         solver={"method": "nls", "status": stats["return_status"], "iterations": int(stats["iter_count"]),
-                "seconds": float(solve_s), "total_seconds": float(total_s),
-                "gauss_newton_decrement": stats["gauss_newton_decrement"], "nodes": int(grid.nodes),
-                "stride": int(grid.stride)},
-        noise={"gyro_density_rad_s_sqrt_hz": prep.gyro_density, "mag_std": prep.sigma_mag},
+                "seconds": float(sol.seconds), "total_seconds": float(total_s),
+                "gauss_newton_decrement": stats["gauss_newton_decrement"], "passes": sol.passes,
+                "nodes": int(grid.nodes), "stride": int(grid.stride), "loss": options.loss},
+        noise={"gyro_density_rad_s_sqrt_hz": prep.gyro_density, "mag_std": sol.sigma_mag,
+               "mag_std_estimated": prep.sigma_mag},
         fit=fit,
+        time_offset_s=tau,
+        time_offset_estimated=problem.n_theta > N_GLOBAL,
+        rests=rest,
+        warnings=warnings_for(segments, rest, a),
         covariance_theta=cov_theta,
     )

@@ -8,6 +8,8 @@ that IPOPT sees numbers of order one:
     dK   (9)   K = K0 + dK   (column-major)              gyro, in the m frame
     deps (3)   eps = eps0 + deps                         rad/s
     dm   (2)   m^i = normalise(m0 + B dm)                unit field, 2 dof
+    dtau (1)   time offset tau = tau0 + 0.01 s * dtau    optional: the magnetometer sample
+               stamped t measures the field at t - tau (it lags the gyro)
     phi  (3 x (N-1))  attitude at nodes 1..N-1: C_m^i(tau_n) = Cbar_n Exp(phi_n)
 
 Node 0 sits on the first magnetometer sample with C_i^m = I (the gauge of
@@ -17,7 +19,9 @@ gyro and magnetometer time, each a rotation by
 (w_a + w_b)/2 dt + dt^2/12 (w_a x w_b), w = K y_g + eps (third-order local
 error for rates linear in time). Residuals, whitened:
 
-    magnetometer  (y_m - h - R^-1 C_i^m(t_j) m^i) * w_mag             raw units
+    magnetometer  (y_m - h - R^-1 C_i^m(t_j - tau) m^i) * w_mag        raw units, with
+                  C_i^m(t - tau) = Exp(tau w(t - tau0/2)) C_i^m(t) and, optionally, a Huber
+                  loss (the residual scaled to sqrt(2 rho(|r|)) / |r|)
     gyro          Winv vee(E - E^T)/2 / sqrt(T_n)                      E: mismatch of
                   the integrated gyro against the two node attitudes, Winv = L^-1 / sigma_g
                   with L L^T = K0 K0^T (the gyro noise enters through K)
@@ -37,10 +41,11 @@ import numpy as np
 from . import so3
 from .compiled import compile_kernel
 
-N_GLOBAL = 23
-GLOBAL_SLICES = {"U": slice(0, 6), "dh": slice(6, 9), "dK": slice(9, 18), "deps": slice(18, 21), "dm": slice(21, 23)}
+N_GLOBAL = 23          # calibration corrections without the time offset; 24 with it
+GLOBAL_SLICES = {"U": slice(0, 6), "dh": slice(6, 9), "dK": slice(9, 18), "deps": slice(18, 21), "dm": slice(21, 23), "dtau": slice(23, 24)}
+TIME_OFFSET_SCALE_S = 0.01
 UPPER_INDEX = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
-GLOBAL_LAYOUT = [("S0", 9), ("h0", 3), ("K0", 9), ("eps0", 3), ("m0", 3), ("B", 6), ("field_scale", 1), ("Winv", 9), ("w_mag", 1)]
+GLOBAL_LAYOUT = [("S0", 9), ("h0", 3), ("K0", 9), ("eps0", 3), ("m0", 3), ("B", 6), ("field_scale", 1), ("Winv", 9), ("w_mag", 1), ("tau0", 1)]
 
 
 # --------------------------------------------------------------------------- grid
@@ -152,16 +157,25 @@ def unpack_globals(theta, g):
     eps = parts["eps0"] + theta[GLOBAL_SLICES["deps"]]
     m_raw = parts["m0"] + ca.mtimes(ca.reshape(parts["B"], 3, 2), theta[GLOBAL_SLICES["dm"]])
     m_i = m_raw / ca.norm_2(m_raw)
-    return S, h, K, eps, m_i, ca.reshape(parts["Winv"], 3, 3), parts["w_mag"]
+    tau = parts["tau0"] + (TIME_OFFSET_SCALE_S * theta[GLOBAL_SLICES["dtau"]] if theta.shape[0] > N_GLOBAL else 0)
+    return S, h, K, eps, m_i, tau, ca.reshape(parts["Winv"], 3, 3), parts["w_mag"]
 
 
 def data_layout(stride: int, L: int) -> list[tuple[str, int]]:
-    return [("Cbar", 9), ("qD", 4), ("w_int", 1), ("ymag", 3 * stride), ("dt", stride * L), ("ya", 3 * stride * L), ("yb", 3 * stride * L)]
+    return [("Cbar", 9), ("qD", 4), ("w_int", 1), ("ymag", 3 * stride), ("ymid", 3 * stride), ("dt", stride * L), ("ya", 3 * stride * L), ("yb", 3 * stride * L)]
 
 
-def interval_residuals(theta, phi_k, phi_k1, g, d, stride: int, L: int):
+def huber_scaled(r, threshold: float):
+    """r scaled so that |r|^2 / 2 becomes Huber's rho(|r|): quadratic inside `threshold`, linear outside."""
+    n = ca.norm_2(r)
+    outside = n > threshold
+    n_safe = ca.if_else(outside, n, 2.0 * threshold)
+    return r * ca.if_else(outside, ca.sqrt(threshold * (2.0 * n_safe - threshold)) / n_safe, 1.0)
+
+
+def interval_residuals(theta, phi_k, phi_k1, g, d, stride: int, L: int, huber: float | None = None):
     """Whitened residuals of one interval: `stride` magnetometer samples, then the gyro mismatch."""
-    S, h, K, eps, m_i, Winv, w_mag = unpack_globals(theta, g)
+    S, h, K, eps, m_i, tau, Winv, w_mag = unpack_globals(theta, g)
     o = 0
     parts = {}
     for name, n in data_layout(stride, L):
@@ -173,8 +187,11 @@ def interval_residuals(theta, phi_k, phi_k1, g, d, stride: int, L: int):
     Q = ca.DM([1, 0, 0, 0])
     res = []
     for i in range(stride):
-        v = rotate_inverse(Q, n_k)
-        res.append((parts["ymag"][3 * i : 3 * i + 3] - ca.mtimes(S, v) - h) * w_mag)
+        v = rotate_inverse(Q, n_k)  # C_i^m(t_j) m^i at the stamp; then back by the time offset
+        w_mid = ca.mtimes(K, parts["ymid"][3 * i : 3 * i + 3]) + eps
+        v = rotate_inverse(quat_conj(quat_exp(tau * w_mid)), v)
+        r_mag = (parts["ymag"][3 * i : 3 * i + 3] - ca.mtimes(S, v) - h) * w_mag
+        res.append(r_mag if huber is None else huber_scaled(r_mag, huber))
         for l in range(L):
             j = i * L + l
             dt = parts["dt"][j]
@@ -212,21 +229,22 @@ def tangent_basis(m0: np.ndarray) -> np.ndarray:
 class JointProblem:
     """The least squares on one grid shape; data and linearisation enter as parameters."""
 
-    def __init__(self, grid: Grid, compiled: bool = True):
+    def __init__(self, grid: Grid, compiled: bool = True, estimate_time_offset: bool = True, huber: float | None = None):
         self.grid = grid
+        self.n_theta = N_GLOBAL + (1 if estimate_time_offset else 0)
         n, s, L = grid.nodes, grid.stride, grid.substeps
         self.n_int = n - 1
         self.n_glob_p = sum(k for _, k in GLOBAL_LAYOUT)
         self.n_data = sum(k for _, k in data_layout(s, L))
-        self.n_x = N_GLOBAL + 3 * self.n_int
+        self.n_x = self.n_theta + 3 * self.n_int
         self.n_res_per_interval = 3 * s + 3
 
-        th = ca.SX.sym("theta", N_GLOBAL)
+        th = ca.SX.sym("theta", self.n_theta)
         pk = ca.SX.sym("phi_k", 3)
         pk1 = ca.SX.sym("phi_k1", 3)
         g = ca.SX.sym("g", self.n_glob_p)
         d = ca.SX.sym("d", self.n_data)
-        r = interval_residuals(th, pk, pk1, g, d, s, L)
+        r = interval_residuals(th, pk, pk1, g, d, s, L, huber)
         JthT = ca.jacobian(r, th).T
         Jk = ca.jacobian(r, pk)
         Jk1 = ca.jacobian(r, pk1)
@@ -243,15 +261,17 @@ class JointProblem:
         if compiled:  # the residual kernel stays symbolic: nlpsol differentiates f at set-up
             self.gradient_kernel = compile_kernel(self.gradient_kernel)
             self.gn_kernel = compile_kernel(self.gn_kernel)
-        S, h, K, eps, m_i, _, _ = unpack_globals(th, g)
-        self.physical_function = ca.Function("physical", [th, g], [S, h, K, eps, m_i], ["theta", "g"], ["S", "h", "K", "eps", "m_i"])
+        S, h, K, eps, m_i, tau, _, _ = unpack_globals(th, g)
+        self.physical_function = ca.Function(
+            "physical", [th, g], [S, h, K, eps, m_i, tau], ["theta", "g"], ["S", "h", "K", "eps", "m_i", "tau"]
+        )
         self._build_graph()
         self._solver = None
 
     # ------------------------------------------------------------------ MX graph
     def _split(self, x, p):
-        theta = x[:N_GLOBAL]
-        phi = ca.reshape(x[N_GLOBAL:], 3, self.n_int)
+        theta = x[: self.n_theta]
+        phi = ca.reshape(x[self.n_theta :], 3, self.n_int)
         phi_k = ca.horzcat(ca.MX.zeros(3, 1), phi[:, : self.n_int - 1])
         g = p[: self.n_glob_p]
         D = ca.reshape(p[self.n_glob_p :], self.n_data, self.n_int)
@@ -275,10 +295,10 @@ class JointProblem:
         JthT, CL, CR, DL, DR, O = self.gn_kernel.map(self.n_int)(theta, phi_k, phi_k1, g, D)
         n3 = 3 * self.n_int
         H_tt = ca.mtimes(JthT, JthT.T)
-        H_tp = ca.horzcat(CL[:, 3:], ca.MX.zeros(N_GLOBAL, 3)) + CR
+        H_tp = ca.horzcat(CL[:, 3:], ca.MX.zeros(self.n_theta, 3)) + CR
         H_pp = ca.horzcat(DL[:, 3:], ca.MX.zeros(3, 3)) + DR
         values = ca.vertcat(ca.vec(ca.densify(H_tt)), ca.vec(ca.densify(H_tp)), ca.vec(ca.densify(H_pp)), ca.vec(ca.densify(O)))
-        sp, perm = hessian_pattern(self.n_int)
+        sp, perm = hessian_pattern(self.n_int, self.n_theta)
         H = ca.MX(sp, values[perm])
         self.hessian_function = ca.Function("gauss_newton_hessian", [x, p], [H])
         lam_f = ca.MX.sym("lam_f")
@@ -289,14 +309,21 @@ class JointProblem:
         assert n3 == H_tp.shape[1]
 
     # ---------------------------------------------------------------- numbers in
-    def parameters(self, lin: Linearisation, y_mag, sigma_mag: float, sigma_gyro_density: float) -> np.ndarray:
-        """Flat parameter vector: the linearisation, the weights and the data on the grid."""
+    def parameters(self, lin: Linearisation, y_mag, sigma_mag: float, sigma_gyro_density: float,
+                   t_gyro_s=None, gyro_rad_s=None, t_mag_s=None, tau0_s: float = 0.0) -> np.ndarray:
+        """Flat parameter vector: the linearisation, the weights and the data on the grid.
+
+        With a time offset tau0 the raw gyro at each magnetometer stamp minus
+        tau0/2 is needed (t_gyro_s, gyro_rad_s, t_mag_s); without them it is
+        taken as zero rate.
+        """
         g_ = self.grid
         Lchol = np.linalg.cholesky(lin.K0 @ lin.K0.T)
         glob = {
             "S0": lin.S0, "h0": lin.h0, "K0": lin.K0, "eps0": lin.eps0, "m0": lin.m0,
             "B": tangent_basis(lin.m0), "field_scale": np.array([lin.field_scale]),
             "Winv": np.linalg.inv(Lchol) / sigma_gyro_density, "w_mag": np.array([1.0 / sigma_mag]),
+            "tau0": np.array([tau0_s]),
         }
         gvec = np.concatenate([np.asarray(glob[k], float).reshape(-1, order="F") for k, _ in GLOBAL_LAYOUT])
         C = lin.C_m_i_nominal
@@ -307,6 +334,7 @@ class JointProblem:
             "qD": so3.dcm_to_quat(D),
             "w_int": (1.0 / np.sqrt(g_.interval_s))[:, None],
             "ymag": np.asarray(y_mag)[g_.mag_index].reshape(n_int, 3 * s),
+            "ymid": gyro_at_mag_midpoints(g_, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s).reshape(n_int, 3 * s),
             "dt": g_.dt_s.reshape(n_int, s * L),
             "ya": g_.gyro_a.reshape(n_int, 3 * s * L),
             "yb": g_.gyro_b.reshape(n_int, 3 * s * L),
@@ -340,15 +368,22 @@ class JointProblem:
         return self._solver
 
 
-def hessian_pattern(n_int: int):
+def gyro_at_mag_midpoints(grid: Grid, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s: float) -> np.ndarray:
+    """Raw gyro at each used magnetometer stamp minus tau0/2: (N-1, stride, 3)."""
+    if t_gyro_s is None:
+        return np.zeros(grid.mag_index.shape + (3,))
+    t = t_mag_s[grid.mag_index] - 0.5 * tau0_s
+    return np.stack([np.interp(t, t_gyro_s, gyro_rad_s[:, i]) for i in range(3)], axis=-1)
+
+
+def hessian_pattern(n_int: int, G: int = N_GLOBAL):
     """Sparsity of triu(J^T J) and, per nonzero, its index in the stacked block values.
 
-    Stacked values: vec(H_tt) (23x23), vec(H_tp) (23 x 3n), vec(H_pp) (3 x 3n,
+    Stacked values: vec(H_tt) (G x G), vec(H_tp) (G x 3n), vec(H_pp) (3 x 3n,
     diagonal blocks side by side), vec(O) (3 x 3n, block k couples node k to k+1).
-    Column of node n (1..n_int), component c: the 23 theta rows, then node n-1's
+    Column of node n (1..n_int), component c: the G theta rows, then node n-1's
     three rows (n >= 2), then node n's rows 0..c.
     """
-    G = N_GLOBAL
     o_tp, o_pp = G * G, G * G + G * 3 * n_int
     o_o = o_pp + 9 * n_int
     jt, it = np.triu_indices(G)[::-1]  # column-major upper triangle: for each column j, rows 0..j

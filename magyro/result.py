@@ -14,8 +14,9 @@ UPPER = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
 # layout of the reported vector (reported_vector), used to unpack its covariance
 REPORTED = {
     "K_g": slice(0, 6), "bias_deg_s": slice(6, 9), "misalignment_deg": slice(9, 12), "R": slice(12, 18),
-    "h": slice(18, 21), "K": slice(21, 30), "field_i": slice(30, 33),
+    "h": slice(18, 21), "K": slice(21, 30), "field_i": slice(30, 33), "time_offset_s": slice(33, 34),
 }
+N_REPORTED = 34
 
 
 def qr_split(K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -54,6 +55,10 @@ class Calibration:
     solver: dict                   # method, status, iterations, seconds, ...
     noise: dict = field(default_factory=dict)
     fit: dict = field(default_factory=dict)
+    time_offset_s: float = 0.0     # magnetometer lag behind the gyro
+    time_offset_estimated: bool = False
+    rests: dict | None = None      # rest segments and the bias they imply
+    warnings: list = field(default_factory=list)
     covariance_theta: np.ndarray | None = None  # 23x23, internal correction parameters
 
     @property
@@ -79,7 +84,11 @@ class Calibration:
             "magnetometer": {"R": L(self.R), "h": L(self.h), "unit": self.mag_unit,
                              "field_strength": float(1.0 / np.cbrt(np.prod(np.diag(self.R))))},
             "field_i": L(self.field_i),
+            "time_offset_s": float(self.time_offset_s),
+            "time_offset_estimated": self.time_offset_estimated,
             "std": {k: L(v) for k, v in self.std.items()},
+            "rests": self.rests,
+            "warnings": list(self.warnings),
             "observability": self.observability,
             "solver": self.solver,
             "noise": self.noise,
@@ -109,10 +118,16 @@ class Calibration:
         h, sh = self.h, s["h"]
         lines.append(f"magnetometer h ({self.mag_unit})  " + "  ".join(f"{h[i]:+.4g} +/- {sh[i]:.2g}" for i in range(3)))
         lines.append("magnetometer R diagonal  " + "  ".join(f"{self.R[i, i]:.5g} +/- {s['R'][i][i]:.2g}" for i in range(3)))
+        if self.time_offset_estimated:
+            lines.append(f"magnetometer lag behind the gyro (ms)  {1e3 * self.time_offset_s:+.2f} +/- {1e3 * s['time_offset_s']:.2f}")
+        if self.rests and self.rests.get("bias_deg_s"):
+            rb = self.rests["bias_deg_s"]
+            lines.append(f"bias from {self.rests['seconds']:.1f} s of rest (deg/s)  " + "  ".join(f"{v:+8.4f}" for v in rb))
         ob = self.observability
         lines.append(f"observability: rank {ob['rank']} of 12, condition {ob['condition']:.3g}")
         sv = self.solver
         lines.append(f"solver: {sv['method']} {sv['status']}, {sv['iterations']} iterations, {sv['seconds']:.2f} s")
+        lines.extend(f"warning: {w}" for w in self.warnings)
         return "\n".join(lines)
 
 
@@ -121,12 +136,8 @@ def misalignment_vector(C_ref: np.ndarray, C: np.ndarray) -> np.ndarray:
     return so3.log_so3(C_ref.T @ C)
 
 
-def reported_vector(K, eps, S, h, m_i, C_ref) -> np.ndarray:
-    """The reported parameters as one vector, for uncertainty propagation.
-
-    Layout: K_g upper (6), bias deg/s (3), misalignment d deg (3), R upper (6),
-    h (3), K (9, row-major), field_i (3).
-    """
+def reported_vector(K, eps, S, h, m_i, C_ref, tau_s: float = 0.0) -> np.ndarray:
+    """The reported parameters as one vector (layout REPORTED), for uncertainty propagation."""
     C, Kg = qr_split(K)
     R = np.linalg.inv(S)
     return np.concatenate([
@@ -137,6 +148,7 @@ def reported_vector(K, eps, S, h, m_i, C_ref) -> np.ndarray:
         h,
         K.reshape(-1),
         m_i,
+        [tau_s],
     ])
 
 
@@ -156,4 +168,5 @@ def std_from_covariance(cov_out: np.ndarray) -> dict:
         "h": sd[REPORTED["h"]],
         "K": sd[REPORTED["K"]].reshape(3, 3),
         "field_i": sd[REPORTED["field_i"]],
+        "time_offset_s": sd[REPORTED["time_offset_s"]][0],
     }
