@@ -245,6 +245,14 @@ def predicted_std(prep: Prepared, options: Options | None = None) -> dict:
     options = options or Options()
     grid, lin, problem = build_problem(prep, options)
     p = problem_parameters(problem, prep, lin, prep.sigma_mag, options.time_offset_s)
+    return information_std(problem, lin, p)
+
+
+def information_std(problem: JointProblem, lin: Linearisation, p) -> dict:
+    """One-sigma of every reported parameter from the Gauss-Newton information at the linearisation point.
+
+    inf where the information is singular (a direction the data do not see).
+    """
     info = reduce_hessian(to_scipy(problem.hessian_function(np.zeros(problem.n_x), p)), problem.n_theta).information
     lam = np.linalg.eigvalsh(info)
     if lam[0] <= lam[-1] * 1e-14:
