@@ -23,7 +23,7 @@ from scipy.linalg import solveh_banded
 
 from . import magfit, noise, rests, so3
 from .errors import InputError, ObservabilityError, SolverError
-from .initial import linear_gyro_estimate
+from .initial import linear_gyro_estimate, with_time_offset
 from .observability import ObservabilityAnalysis, analyse
 from .problem import N_GLOBAL, TIME_OFFSET_SCALE_S, Grid, JointProblem, Linearisation, build_grid
 from .result import N_REPORTED, Calibration, qr_split, reported_vector, std_from_covariance
@@ -69,19 +69,53 @@ class Prepared:
     field_m: np.ndarray
     analysis: ObservabilityAnalysis
     rests: rests.Rests | None = None
+    noise_source: str = ""
 
 
-def noise_levels(session: Session, options: Options) -> tuple[float, float]:
-    sigma_mag = options.mag_noise_std or noise.mag_noise_std(session.mag)
-    density = options.gyro_noise_density_rad_s_sqrt_hz or noise.gyro_noise_density_rad_s_sqrt_hz(
-        session.gyro_rad_s, session.gyro_rate_hz
-    )
-    if not (sigma_mag > 0 and density > 0):
+MIN_REST_FOR_NOISE_S = 2.0
+MIN_MOVING_SAMPLES = 100
+
+
+@dataclass(frozen=True)
+class NoiseLevels:
+    """Per-sample stds (what noise adds sample by sample) and effective white levels (what weights the fit)."""
+
+    mag_sample_std: float          # magnetometer unit
+    gyro_sample_std_rad_s: float
+    mag_std: float                 # effective: per-sample std * sqrt(autocorrelation time)
+    gyro_density_rad_s_sqrt_hz: float
+    source: str
+
+
+def noise_levels(session: Session, options: Options, found: rests.Rests) -> NoiseLevels:
+    """Noise levels: given, from the longest rest (correlation included), or from third differences (white)."""
+    rate = session.gyro_rate_hz
+    if found.seconds >= MIN_REST_FOR_NOISE_S:
+        longest = max(found.segments_s, key=lambda ab: ab[1] - ab[0])
+        still = rests.rests_from_segments(session, [longest])
+        mag_sample = float(np.sqrt(np.mean(np.var(still.mag_still, axis=0))))
+        gyro_sample = float(np.sqrt(np.mean(np.var(still.gyro_still, axis=0))))
+        mag_eff = noise.effective_std(still.mag_still)
+        density = noise.effective_std(still.gyro_still) / np.sqrt(rate)
+        source = f"the {longest[1] - longest[0]:.1f} s rest (correlation included)"
+    else:
+        mag_sample = mag_eff = noise.mag_noise_std(session.mag)
+        density = noise.gyro_noise_density_rad_s_sqrt_hz(session.gyro_rad_s, rate)
+        gyro_sample = density * np.sqrt(rate)
+        source = "third differences (white noise assumed)"
+    if options.mag_noise_std:
+        mag_sample = mag_eff = options.mag_noise_std
+    if options.gyro_noise_density_rad_s_sqrt_hz:
+        density = options.gyro_noise_density_rad_s_sqrt_hz
+        gyro_sample = density * np.sqrt(rate)
+    if options.mag_noise_std or options.gyro_noise_density_rad_s_sqrt_hz:
+        source = "given" if options.mag_noise_std and options.gyro_noise_density_rad_s_sqrt_hz else source + ", partly given"
+    if not (mag_eff > 0 and density > 0):
         raise InputError(
             "cannot estimate the sensor noise from the data (the readings do not vary); "
-            "pass --mag-noise and --gyro-noise-density"
+            "pass --mag-noise and --gyro-noise"
         )
-    return float(sigma_mag), float(density)
+    return NoiseLevels(float(mag_sample), float(gyro_sample), float(mag_eff), float(density), source)
 
 
 def check_gyro_unit(session: Session, field_m: np.ndarray) -> None:
@@ -104,28 +138,31 @@ def check_gyro_unit(session: Session, field_m: np.ndarray) -> None:
 
 def prepare(session: Session, options: Options) -> Prepared:
     """Steps 1-3: noise, rests, ellipsoid, observability. Raises ObservabilityError unless forced."""
-    sigma_mag, density = noise_levels(session, options)
-    gyro_std = density * np.sqrt(session.gyro_rate_hz)
-    found = rests.find_rests(session, gyro_std, sigma_mag)
+    found = rests.find_rests(session)
+    levels = noise_levels(session, options, found)
+    sigma_mag, density = levels.mag_std, levels.gyro_density_rad_s_sqrt_hz
+    gyro_std, mag_sample = levels.gyro_sample_std_rad_s, levels.mag_sample_std
     if options.trim_rests and found.segments_s:
-        session = rests.trimmed(session, *rests.moving_span(session, found))
+        moving = rests.trimmed(session, *rests.moving_span(session, found))
+        if min(len(moving.t_mag_s), len(moving.t_gyro_s)) >= MIN_MOVING_SAMPLES:
+            session = moving  # (a session that is one long rest stays whole: the gate calls it static)
     try:
-        fit = magfit.fit_ellipsoid(session.mag, sigma_mag)
+        fit = magfit.fit_ellipsoid(session.mag, mag_sample)
     except magfit.DegenerateCloud as cloud:
         field = magfit.surrogate_field_directions(session.mag)
-        analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, sigma_mag / np.mean(np.linalg.norm(session.mag, axis=1)))
+        analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, mag_sample / np.mean(np.linalg.norm(session.mag, axis=1)))
         raise ObservabilityError(
             f"{cloud}; the magnetometer's soft/hard iron cannot be fitted. Gyro parameters: {analysis.summary()}",
             analysis,
         ) from None
     field = magfit.calibrated_field(fit.R, fit.h, session.mag)
     check_gyro_unit(session, field)
-    analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, sigma_mag * float(np.mean(np.diag(fit.R))))
+    analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, mag_sample * float(np.mean(np.diag(fit.R))))
     if not analysis.full_rank and not options.force:
         raise ObservabilityError(
             f"the motion does not excite every gyro parameter: {analysis.summary()} (--force solves anyway)", analysis
         )
-    return Prepared(session, sigma_mag, density, fit, field, analysis, found)
+    return Prepared(session, sigma_mag, density, fit, field, analysis, found, levels.source)
 
 
 def nominal_attitudes(session: Session, K0, eps0, t_node_s) -> np.ndarray:
@@ -147,13 +184,16 @@ def default_stride(session: Session) -> int:
     return max(1, int(round(session.mag_rate_hz / NODE_RATE_HZ)))
 
 
-def linearise(prep: Prepared, grid: Grid) -> Linearisation:
+def linearise(prep: Prepared, grid: Grid, options: Options) -> Linearisation:
     s = prep.session
-    lin0 = linear_gyro_estimate(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, prep.field_m)
+    if options.estimate_time_offset:
+        lin0 = with_time_offset(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, prep.field_m)
+    else:
+        lin0 = linear_gyro_estimate(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, prep.field_m, time_offset_s=options.time_offset_s)
     C = nominal_attitudes(s, lin0.K, lin0.eps, grid.t_node_s)
     m0 = initial_field(C, prep.field_m[grid.node_mag_index])
     S0 = np.linalg.inv(prep.fit.R)
-    return Linearisation(S0, prep.fit.h, lin0.K, lin0.eps, m0, C, float(np.mean(np.diag(S0))))
+    return Linearisation(S0, prep.fit.h, lin0.K, lin0.eps, m0, C, float(np.mean(np.diag(S0))), lin0.time_offset_s)
 
 
 def banded_upper(H_pp_triu) -> np.ndarray:
@@ -221,7 +261,7 @@ def propagate(problem: JointProblem, theta, g, cov_theta, C_ref) -> np.ndarray:
 def build_problem(prep: Prepared, options: Options) -> tuple[Grid, Linearisation, JointProblem]:
     s = prep.session
     grid = build_grid(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, options.stride or default_stride(s))
-    lin = linearise(prep, grid)
+    lin = linearise(prep, grid, options)
     huber = options.huber_threshold if options.loss == "huber" else None
     if options.loss not in ("l2", "huber"):
         raise InputError(f"unknown loss '{options.loss}'; use l2 or huber")
@@ -244,7 +284,7 @@ def predicted_std(prep: Prepared, options: Options | None = None) -> dict:
     """
     options = options or Options()
     grid, lin, problem = build_problem(prep, options)
-    p = problem_parameters(problem, prep, lin, prep.sigma_mag, options.time_offset_s)
+    p = problem_parameters(problem, prep, lin, prep.sigma_mag, lin.time_offset_s)
     return information_std(problem, lin, p)
 
 
@@ -263,9 +303,16 @@ def information_std(problem: JointProblem, lin: Linearisation, p) -> dict:
 
 
 def magnetometer_noise_factor(problem: JointProblem, x, p) -> float:
-    """Robust ratio of the magnetometer residual scale to the assumed noise (1 when the noise model holds)."""
-    r = residual_matrix(problem, x, p)[:, :-3].reshape(-1, 3)
-    return float(np.sqrt(np.median(np.sum(r**2, axis=1)) / CHI2_3DOF_MEDIAN))
+    """Ratio of the magnetometer residuals' effective scale to the assumed noise (1 when the noise model holds).
+
+    Robust per-sample scale (median of |r|^2 against its chi^2 median) times
+    the square root of the residuals' integrated autocorrelation time, so
+    correlated model error (a field not quite homogeneous) counts as what it
+    is: fewer independent samples.
+    """
+    r = residual_matrix(problem, x, p)[:, :-3].reshape(-1, 3)  # time-ordered samples
+    scale = np.sqrt(np.median(np.sum(r**2, axis=1)) / CHI2_3DOF_MEDIAN)
+    return float(scale * np.sqrt(noise.integrated_autocorrelation_time(r)))
 
 
 def residual_matrix(problem: JointProblem, x, p) -> np.ndarray:
@@ -287,7 +334,7 @@ class Solution:
 def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, options: Options) -> Solution:
     """IPOPT, then at most two warm re-solves: new time-offset look-up, re-weighted magnetometer noise."""
     solver = problem.solver({"ipopt.max_iter": options.max_iter})
-    sigma_mag, tau0 = prep.sigma_mag, options.time_offset_s
+    sigma_mag, tau0 = prep.sigma_mag, lin.time_offset_s
     x = np.zeros(problem.n_x)
     seconds, iterations = 0.0, 0
     for n_pass in range(1, MAX_PASSES + 1):
@@ -343,6 +390,12 @@ def residual_summary(problem: JointProblem, x, p) -> dict:
     }
 
 
+def runs_of_true(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) index of every run of True."""
+    edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
+
+
 def suspect_segments(problem: JointProblem, grid: Grid, x, p) -> list[dict]:
     """Windows where the magnetometer fits far worse than typical (spikes, iron or a magnet near the path)."""
     r = residual_matrix(problem, x, p)[:, :-3]
@@ -354,8 +407,7 @@ def suspect_segments(problem: JointProblem, grid: Grid, x, p) -> list[dict]:
     typical = np.median(rms)
     bad = rms > SUSPECT_FACTOR * typical
     out = []
-    for a, b in rests.still_runs(np.arange(n_w, dtype=float), bad, 0.0):
-        a, b = int(a), int(b)
+    for a, b in runs_of_true(bad):
         out.append({
             "t0_s": float(t[0] + a * SUSPECT_WINDOW_S), "t1_s": float(t[0] + (b + 1) * SUSPECT_WINDOW_S),
             "residual_vs_typical": float(rms[a : b + 1].max() / typical),
@@ -396,7 +448,10 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
     h, eps, m_i, tau = h.ravel(), eps.ravel(), m_i.ravel(), float(tau.item())
     C, Kg = qr_split(K)
     fit = residual_summary(problem, sol.x, sol.p)
-    cov_theta = np.linalg.inv(reduced.information) * fit["variance_factor"]
+    # No a-posteriori variance-factor scaling: the noise levels are already calibrated (given, from
+    # rests with their correlation, or re-weighted from the residuals' effective scale); the plain
+    # factor counts correlated samples as independent and would undo that. It is reported in `fit`.
+    cov_theta = np.linalg.inv(reduced.information)
     std = std_from_covariance(propagate(problem, theta, g, cov_theta, C))
     segments = suspect_segments(problem, grid, sol.x, sol.p)
     rest = rest_check(prep.rests, Kg, C.T @ eps)
@@ -413,7 +468,7 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
                 "gauss_newton_decrement": stats["gauss_newton_decrement"], "passes": sol.passes,
                 "nodes": int(grid.nodes), "stride": int(grid.stride), "loss": options.loss},
         noise={"gyro_density_rad_s_sqrt_hz": prep.gyro_density, "mag_std": sol.sigma_mag,
-               "mag_std_estimated": prep.sigma_mag},
+               "mag_std_estimated": prep.sigma_mag, "source": prep.noise_source},
         fit=fit,
         time_offset_s=tau,
         time_offset_estimated=problem.n_theta > N_GLOBAL,

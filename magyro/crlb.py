@@ -24,14 +24,14 @@ def truth_linearisation(problem: Problem, t_node_s: np.ndarray) -> Linearisation
     m0 = C[0].T @ field_i(problem)
     S0 = np.linalg.inv(problem.R)
     return Linearisation(S0, np.asarray(problem.hard_iron, float), problem.K, problem.eps_m_rad_s, m0, C_rebased,
-                         float(np.mean(np.diag(S0))))
+                         float(np.mean(np.diag(S0))), problem.mag_time_offset_s)
 
 
 def moving_part(problem: Problem, session: Session, options: Options) -> Session:
-    """The session as the solver sees it (rests at both ends trimmed), found with the true noise."""
+    """The session as the solver sees it (rests at both ends trimmed)."""
     if not options.trim_rests:
         return session
-    found = rests.find_rests(session, problem.gyro_sample_std_rad_s, problem.mag_noise_std)
+    found = rests.find_rests(session)
     return rests.trimmed(session, *rests.moving_span(session, found)) if found.segments_s else session
 
 

@@ -1,6 +1,14 @@
 """Sensor noise levels estimated from the data itself.
 
-A third difference of a smooth signal sampled fast is nearly zero, while for
+What weights a least squares is the noise's low-frequency density, not its
+per-sample std: real sensors filter or repeat samples (BROAD's magnetometer
+has lag-1..3 autocorrelations 0.78, 0.41, 0.17), so consecutive samples are
+not independent. With per-sample std s and integrated autocorrelation time
+tau = 1 + 2 sum_k rho_k (in samples), the effective white std is
+s * sqrt(tau): one sample in tau carries independent information.
+
+From rests (when the session has them) both s and tau come straight from
+the still data. Otherwise, a third difference of a smooth signal sampled fast is nearly zero, while for
 white noise of std s it has std s * sqrt(20). A robust (MAD) scale of the
 third differences therefore estimates the white-noise std per axis, even
 while the device moves. Good enough to weight the least squares; users who
@@ -31,3 +39,32 @@ def gyro_noise_density_rad_s_sqrt_hz(gyro_rad_s: np.ndarray, rate_hz: float) -> 
     """Gyro noise density (rad/s/sqrt(Hz)) from the per-sample std: std / sqrt(rate)."""
     std = float(np.sqrt(np.mean(white_noise_std(gyro_rad_s) ** 2)))
     return std / np.sqrt(rate_hz)
+
+
+AUTOCORRELATION_CUTOFF = 0.05
+MAX_LAG = 200
+
+
+def integrated_autocorrelation_time(x: np.ndarray) -> float:
+    """tau = 1 + 2 sum of the autocorrelations, summed until they drop below 0.05; mean over columns."""
+    x = np.asarray(x, dtype=float)
+    if x.ndim == 1:
+        x = x[:, None]
+    taus = []
+    for col in (x - x.mean(axis=0)).T:
+        var = float(col @ col)
+        tau = 1.0
+        if var > 0:
+            for k in range(1, min(MAX_LAG, len(col) // 4)):
+                rho = float(col[:-k] @ col[k:]) / var
+                if rho < AUTOCORRELATION_CUTOFF:
+                    break
+                tau += 2.0 * rho
+        taus.append(tau)
+    return float(np.mean(taus))
+
+
+def effective_std(x: np.ndarray) -> float:
+    """RMS over axes of the per-sample std, times sqrt(tau): the white std carrying the same information."""
+    per_sample = float(np.sqrt(np.mean(np.var(np.asarray(x, dtype=float), axis=0))))
+    return per_sample * np.sqrt(integrated_autocorrelation_time(x))

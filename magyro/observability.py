@@ -3,16 +3,18 @@
 The 12 gyro parameters [vec K; eps] are observable when the integral of
 M^T M over the session is nonsingular (paper eq. 10-11). With real, noisy
 data the matrix is never exactly singular, so the rank is counted against a
-**noise floor**: sensor noise alone adds at most
+**noise floor**. Writing M = (ytilde^T (x) S) with ytilde = [y_g; 1] and
+S = (m^m x), M^T M = (ytilde ytilde^T) (x) (S^T S), and per-sample noise
+adds, in expectation,
 
-    floor = integral of ( sigma_g,sample^2 + 2 sigma_m^2 (1 + |y_g|^2) ) dt
+    N = integral of ( sigma_g^2 diag(1,1,1,0) (x) (I - m m^T)
+                      + 2 sigma_m^2 ytilde ytilde^T (x) I ) dt
 
-to any eigenvalue (gyro noise enters M through y_g, magnetometer noise
-through m^m x, whose outer product has expectation 2 sigma_m^2 I). An
-eigen-direction counts as excited only when its eigenvalue exceeds
-`FLOOR_FACTOR` times that floor (and a numerical tolerance). Units: K is
-dimensionless, eps in rad/s, so the matrix is in s * (rad/s)^2 for the K
-block and s for the eps block.
+(gyro noise through y_g; magnetometer noise through m x, whose outer
+product has expectation 2 sigma_m^2 I). An eigen-direction v of the
+integral counts as excited only when its eigenvalue exceeds `FLOOR_FACTOR`
+times v^T N v, what noise alone puts in that very direction (and a
+numerical tolerance). Units: K is dimensionless, eps in rad/s.
 
 This module is shared by `magyro solve` (the gate) and `magyro observe`.
 """
@@ -33,17 +35,20 @@ AXES = "xyz"
 class ObservabilityAnalysis:
     rank: int
     condition: float
-    eigenvalues: np.ndarray            # ascending, raw units
+    eigenvalues: np.ndarray            # raw units, ordered weakest (signal to noise) first
     eigenvectors: np.ndarray           # columns, matching eigenvalues
-    tolerance: float                   # the rank threshold actually used
-    noise_floor: float
+    tolerance: float                   # FLOOR_FACTOR times the largest noise eigenvalue (for reference)
+    noise_floor: float                 # largest eigenvalue of the noise matrix N
     information: np.ndarray            # the 12x12 integral of M^T M
     weak_directions: list[str] = field(default_factory=list)
     advice: list[str] = field(default_factory=list)
+    signal_to_noise: np.ndarray | None = None   # per eigen-direction: lambda_v / v^T N v, weakest first
 
     @property
     def eigenvalues_normalised(self) -> np.ndarray:
-        return self.eigenvalues / self.eigenvalues[-1]
+        """Ascending, divided by the largest."""
+        lam = np.sort(self.eigenvalues)
+        return lam / lam[-1]
 
     @property
     def full_rank(self) -> bool:
@@ -64,20 +69,71 @@ def noise_floor(t_gyro_s, gyro_rad_s, gyro_sample_std_rad_s: float, mag_std_unit
 
 
 def count_rank(eigenvalues: np.ndarray, floor: float) -> tuple[int, float]:
+    """Rank against one scalar floor (the largest noise eigenvalue): a conservative count."""
     tol = max(FLOOR_FACTOR * floor, NUMERICAL_RTOL * eigenvalues[-1])
     return int(np.sum(eigenvalues > tol)), tol
+
+
+def noise_matrix(t_gyro_s, gyro_rad_s, t_mag_s, field_m, gyro_sample_std_rad_s: float, mag_std_unit_field: float) -> np.ndarray:
+    """N: what per-sample sensor noise adds, in expectation, to the integral of M^T M (12 x 12)."""
+    from .excitation import field_on_gyro_times
+
+    inside, f = field_on_gyro_times(t_gyro_s, t_mag_s, field_m)
+    w = trapezoid_weights(t_gyro_s[inside])
+    y1 = np.column_stack([gyro_rad_s[inside], np.ones(inside.sum())])
+    P = np.einsum("k,kij->ij", w, np.eye(3)[None] - np.einsum("ki,kj->kij", f, f))
+    gyro_part = np.kron(np.diag([1.0, 1.0, 1.0, 0.0]), gyro_sample_std_rad_s**2 * P)
+    mag_part = np.kron(2.0 * mag_std_unit_field**2 * (y1 * w[:, None]).T @ y1, np.eye(3))
+    return gyro_part + mag_part
+
+
+def cumulative_noise_matrix(t_gyro_s, gyro_rad_s, t_mag_s, field_m, gyro_sample_std_rad_s: float,
+                            mag_std_unit_field: float, t_checkpoints_s) -> np.ndarray:
+    """`noise_matrix` of the session up to each checkpoint time: (C, 12, 12), the twin of
+    `excitation.cumulative_information` (same samples, same trapezoid, same checkpoint look-up).
+
+    At a checkpoint on the last gyro sample it equals `noise_matrix` of the whole session.
+    """
+    from .excitation import field_on_gyro_times
+
+    inside, f = field_on_gyro_times(t_gyro_s, t_mag_s, field_m)
+    t = np.asarray(t_gyro_s, dtype=float)[inside]
+    y1 = np.column_stack([np.asarray(gyro_rad_s)[inside], np.ones(len(t))])
+    per_sample = np.concatenate([(np.eye(3)[None] - np.einsum("ki,kj->kij", f, f)).reshape(-1, 9),
+                                 np.einsum("ki,kj->kij", y1, y1).reshape(-1, 16)], axis=1)
+    dt = np.diff(t)[:, None]
+    cum = np.concatenate([np.zeros((1, 25)), np.cumsum(0.5 * (per_sample[1:] + per_sample[:-1]) * dt, axis=0)])
+    idx = np.clip(np.searchsorted(t, t_checkpoints_s, side="right") - 1, 0, len(t) - 1)
+    P = cum[idx, :9].reshape(-1, 3, 3)
+    Y = cum[idx, 9:].reshape(-1, 4, 4)
+    D = np.diag([1.0, 1.0, 1.0, 0.0])
+    gyro_part = np.einsum("ab,cij->caibj", D, gyro_sample_std_rad_s**2 * P).reshape(-1, 12, 12)
+    mag_part = np.einsum("cab,ij->caibj", 2.0 * mag_std_unit_field**2 * Y, np.eye(3)).reshape(-1, 12, 12)
+    return gyro_part + mag_part
+
+
+def directional_rank(eigenvalues: np.ndarray, eigenvectors: np.ndarray, N: np.ndarray) -> tuple[int, np.ndarray]:
+    """(rank, signal-to-noise per eigen-direction): lambda_v / (v^T N v)."""
+    floor_v = np.einsum("iv,ij,jv->v", eigenvectors, N, eigenvectors)
+    snr = eigenvalues / np.maximum(floor_v, 1e-300)
+    excited = (snr > FLOOR_FACTOR) & (eigenvalues > NUMERICAL_RTOL * eigenvalues[-1])
+    return int(np.sum(excited)), snr
 
 
 def analyse(t_gyro_s, gyro_rad_s, t_mag_s, field_m, gyro_sample_std_rad_s: float, mag_std_unit_field: float) -> ObservabilityAnalysis:
     """Rank, condition and plain-language weak directions of the integral of M^T M."""
     info = information_integral(t_gyro_s, gyro_rad_s, t_mag_s, field_m)
     lam, V = np.linalg.eigh(info)
-    floor = noise_floor(t_gyro_s, gyro_rad_s, gyro_sample_std_rad_s, mag_std_unit_field)
-    rank, tol = count_rank(lam, floor)
+    N = noise_matrix(t_gyro_s, gyro_rad_s, t_mag_s, field_m, gyro_sample_std_rad_s, mag_std_unit_field)
+    rank, snr = directional_rank(lam, V, N)
+    floor = float(np.linalg.eigvalsh(N)[-1])
+    tol = FLOOR_FACTOR * floor
     condition = float(lam[-1] / lam[0]) if lam[0] > 0 else float("inf")
+    order = np.argsort(snr)
+    lam, V, snr = lam[order], V[:, order], snr[order]  # weakest (by signal to noise) first
     weak = unobservable_groups(V[:, : 12 - rank])
     advice = motion_advice(t_gyro_s, gyro_rad_s, t_mag_s, field_m) if rank < 12 else []
-    return ObservabilityAnalysis(rank, condition, lam, V, tol, floor, info, weak, advice)
+    return ObservabilityAnalysis(rank, condition, lam, V, tol, floor, info, weak, advice, snr)
 
 
 PARAMETER_GROUPS = {

@@ -215,6 +215,7 @@ class Linearisation:
     m0: np.ndarray             # unit vector
     C_m_i_nominal: np.ndarray  # (N, 3, 3), node 0 = I
     field_scale: float         # typical |R^-1|, scales dh
+    time_offset_s: float = 0.0  # magnetometer lag to start from
 
 
 def tangent_basis(m0: np.ndarray) -> np.ndarray:

@@ -1,10 +1,12 @@
-"""Still segments of a session: found, trimmed from the ends, and used as an independent bias check.
+"""The rests at both ends of a session: found, trimmed, and used for noise levels and a bias check.
 
-A sample is still when, over a window around it, both the gyro and the
-magnetometer vary no more than their noise (rolling std below
-`STILL_IN_NOISE_STD` times the white-noise std on every axis). Still runs
-of at least `MIN_REST_S` are rests. The paper excludes the rests at both
-ends from the calibration; a rest in the middle costs nothing and stays.
+A recording starts and ends with the device lying still (the paper's, and
+BROAD's, do). The first and last `WINDOW_S` tell what still looks like on
+this sensor: their mean and std. The rest lasts while the smoothed gyro and
+magnetometer stay within `STILL_IN_NOISE_STD` smoothed-noise stds of that
+mean on every axis; a run of at least `MIN_REST_S` is a rest. No assumed
+noise level enters, so filtered or quantised sensors are handled alike. The
+paper excludes these rests from the calibration.
 
 At rest the true rate is zero (the Earth's 0.004 deg/s is far below a MEMS
 gyro's bias), so K_g y_rest + eps_b = 0 and eps_b = -K_g mean(y_rest): a
@@ -19,8 +21,10 @@ import numpy as np
 from .session import Session
 
 WINDOW_S = 0.5
+SMOOTH_S = 0.1
 MIN_REST_S = 1.0
-STILL_IN_NOISE_STD = 3.0
+STILL_IN_NOISE_STD = 8.0
+MOVING_IF_STD_OVER_WHITE = 10.0   # a first window this much noisier than white noise is already moving
 
 
 @dataclass(frozen=True)
@@ -28,6 +32,8 @@ class Rests:
     segments_s: list[tuple[float, float]]  # (start, end) of each rest
     seconds: float
     gyro_mean_rad_s: np.ndarray | None     # mean raw gyro over all rests, None without rests
+    gyro_still: np.ndarray | None = None   # the raw gyro samples at rest (for noise levels)
+    mag_still: np.ndarray | None = None    # the magnetometer samples at rest
 
     def to_dict(self) -> dict:
         return {
@@ -37,35 +43,63 @@ class Rests:
         }
 
 
-def rolling_std(t_s: np.ndarray, x: np.ndarray, window_s: float) -> np.ndarray:
-    """Std of each column of x over a centred window of `window_s` (cumulative sums, any sampling)."""
-    c1 = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
-    c2 = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x * x, axis=0)])
-    lo = np.searchsorted(t_s, t_s - window_s / 2, side="left")
-    hi = np.searchsorted(t_s, t_s + window_s / 2, side="right")
-    n = np.maximum(hi - lo, 1)[:, None]
-    mean = (c1[hi] - c1[lo]) / n
-    return np.sqrt(np.maximum((c2[hi] - c2[lo]) / n - mean**2, 0.0))
+def moving_average(t_s: np.ndarray, x: np.ndarray, width_s: float) -> np.ndarray:
+    c = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
+    lo = np.searchsorted(t_s, t_s - width_s / 2, side="left")
+    hi = np.searchsorted(t_s, t_s + width_s / 2, side="right")
+    return (c[hi] - c[lo]) / np.maximum(hi - lo, 1)[:, None]
 
 
-def still_runs(t_s: np.ndarray, still: np.ndarray, min_s: float) -> list[tuple[float, float]]:
-    edges = np.diff(np.concatenate([[0], still.astype(int), [0]]))
-    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
-    return [(float(t_s[a]), float(t_s[b])) for a, b in zip(starts, ends) if t_s[b] - t_s[a] >= min_s]
+def still_prefix_s(t_s: np.ndarray, x: np.ndarray, white_std: np.ndarray) -> float:
+    """How long x stays like its first WINDOW_S (0 when it is moving from the start)."""
+    first = t_s <= t_s[0] + WINDOW_S
+    mean0, std0 = x[first].mean(axis=0), x[first].std(axis=0)
+    if first.sum() < 5 or np.any(std0 > MOVING_IF_STD_OVER_WHITE * np.maximum(white_std, 1e-12)):
+        return 0.0
+    n_smooth = max(1.0, SMOOTH_S * (len(t_s) - 1) / (t_s[-1] - t_s[0]))
+    band = STILL_IN_NOISE_STD * np.maximum(std0, white_std) / np.sqrt(n_smooth)
+    away = np.any(np.abs(moving_average(t_s, x, SMOOTH_S) - mean0) > band, axis=1)
+    return float((t_s[np.argmax(away)] if away.any() else t_s[-1]) - t_s[0])
 
 
-def find_rests(session: Session, gyro_std_rad_s: float, mag_std: float) -> Rests:
-    """Rests of the session, on the gyro time base."""
-    t = session.t_gyro_s
-    gyro_still = np.all(rolling_std(t, session.gyro_rad_s, WINDOW_S) < STILL_IN_NOISE_STD * gyro_std_rad_s, axis=1)
-    mag_still_m = np.all(rolling_std(session.t_mag_s, session.mag, WINDOW_S) < STILL_IN_NOISE_STD * mag_std, axis=1)
-    mag_still = np.interp(t, session.t_mag_s, mag_still_m.astype(float)) > 0.99
-    segments = still_runs(t, gyro_still & mag_still, MIN_REST_S)
-    inside = np.zeros(len(t), dtype=bool)
-    for a, b in segments:
-        inside |= (t >= a) & (t <= b)
-    mean = session.gyro_rad_s[inside].mean(axis=0) if inside.any() else None
-    return Rests(segments, float(sum(b - a for a, b in segments)), mean)
+def end_rest_lengths(session: Session, gyro_white: np.ndarray, mag_white: np.ndarray, reverse: bool) -> float:
+    def flip(t, x):
+        return (t[-1] - t[::-1], x[::-1]) if reverse else (t, x)
+
+    g = still_prefix_s(*flip(session.t_gyro_s, session.gyro_rad_s), gyro_white)
+    m = still_prefix_s(*flip(session.t_mag_s, session.mag), mag_white)
+    return min(g, m)
+
+
+def find_rests(session: Session) -> Rests:
+    """The rests at the start and at the end of the session."""
+    from .noise import white_noise_std
+
+    gw, mw = white_noise_std(session.gyro_rad_s), white_noise_std(session.mag)
+    t_first = max(session.t_gyro_s[0], session.t_mag_s[0])
+    t_last = min(session.t_gyro_s[-1], session.t_mag_s[-1])
+    head = end_rest_lengths(session, gw, mw, reverse=False)
+    tail = end_rest_lengths(session, gw, mw, reverse=True)
+    segments = []
+    if head >= MIN_REST_S:
+        segments.append((float(t_first), float(t_first + head)))
+    if tail >= MIN_REST_S and t_last - tail > t_first + head:
+        segments.append((float(t_last - tail), float(t_last)))
+    return rests_from_segments(session, segments)
+
+
+def rests_from_segments(session: Session, segments) -> Rests:
+    def inside(t):
+        m = np.zeros(len(t), dtype=bool)
+        for a, b in segments:
+            m |= (t >= a) & (t <= b)
+        return m
+
+    g, m = inside(session.t_gyro_s), inside(session.t_mag_s)
+    if not g.any():
+        return Rests([], 0.0, None)
+    return Rests(list(segments), float(sum(b - a for a, b in segments)), session.gyro_rad_s[g].mean(axis=0),
+                 session.gyro_rad_s[g], session.mag[m])
 
 
 def moving_span(session: Session, rests: Rests) -> tuple[float, float]:
@@ -73,7 +107,7 @@ def moving_span(session: Session, rests: Rests) -> tuple[float, float]:
     t0 = min(session.t_gyro_s[0], session.t_mag_s[0])
     t1 = max(session.t_gyro_s[-1], session.t_mag_s[-1])
     start, end = t0, t1
-    margin = 0.5 * WINDOW_S
+    margin = SMOOTH_S
     for a, b in rests.segments_s:
         if a <= session.t_gyro_s[0] + margin:
             start = max(start, b - margin)
