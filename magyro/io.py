@@ -64,12 +64,12 @@ def load_session(path, gyro_unit: str | None = None, mag_unit: str | None = None
     path = Path(path)
     table, metadata = _read_table(path)
     try:
-        return _session_from_table(table, metadata, str(path), gyro_unit, mag_unit)
+        return session_from_table(table, metadata, str(path), gyro_unit, mag_unit)
     except InputError as exc:
         raise InputError(f"{path}: {exc}") from None
 
 
-def _session_from_table(table: pd.DataFrame, metadata: dict, source: str,
+def session_from_table(table: pd.DataFrame, metadata: dict, source: str,
                         gyro_unit: str | None, mag_unit: str | None) -> Session:
     """Validate the table's content and split it into per-sensor time bases."""
     _check_columns(table)
@@ -98,21 +98,21 @@ def _session_from_table(table: pd.DataFrame, metadata: dict, source: str,
 
 def _read_table(path: Path) -> tuple[pd.DataFrame, dict]:
     """The file as a DataFrame plus its key-value metadata (empty for CSV)."""
-    _check_file_exists(path)
+    check_file_exists(path)
     try:
         if _is_parquet(path):
             table, metadata = _read_parquet(path)
         else:
             table, metadata = _read_csv(path), {}
     except OSError as exc:
-        raise InputError(f"{path}: cannot be read ({exc.strerror or _one_line(exc)})") from None
+        raise InputError(f"{path}: cannot be read ({exc.strerror or one_line(exc)})") from None
     if len(table) == 0:
         raise InputError(f"{path}: the file has no data rows; a session needs at least "
                          f"{MIN_SAMPLES} gyro and {MIN_SAMPLES} magnetometer samples")
     return table, metadata
 
 
-def _check_file_exists(path: Path) -> None:
+def check_file_exists(path: Path) -> None:
     if not path.exists():
         raise InputError(f"{path}: no such file; check the path")
     if not path.is_file():
@@ -133,7 +133,7 @@ def _read_parquet(path: Path) -> tuple[pd.DataFrame, dict]:
         arrow_table = pq.read_table(path)
         table = arrow_table.to_pandas()
     except Exception as exc:  # pyarrow raises many types for corrupt files
-        raise InputError(f"{path}: cannot be read as Parquet ({_one_line(exc)}); "
+        raise InputError(f"{path}: cannot be read as Parquet ({one_line(exc)}); "
                          f"the file is corrupt or not a Parquet file") from None
     table.columns = [str(c).strip() for c in table.columns]
     return table, _user_metadata(arrow_table.schema.metadata)
@@ -160,12 +160,12 @@ def _read_csv(path: Path) -> pd.DataFrame:
     except pd.errors.EmptyDataError:
         raise InputError(f"{path}: the file holds no header and no data rows") from None
     except Exception as exc:
-        raise InputError(f"{path}: cannot be read as CSV ({_one_line(exc)})") from None
+        raise InputError(f"{path}: cannot be read as CSV ({one_line(exc)})") from None
     table.columns = [str(c).strip() for c in table.columns]
     return table
 
 
-def _one_line(exc: Exception) -> str:
+def one_line(exc: Exception) -> str:
     text = " ".join(str(exc).split()) or type(exc).__name__
     return text[:200]
 
@@ -337,15 +337,16 @@ def _check_gyro_rate_plausible(gyro_rad_s: np.ndarray, gyro_unit: str) -> None:
 # --------------------------------------------------------------------------- writing
 
 
-def write_session(session: Session, path, truth_quat: bool = True) -> None:
+def write_session(session: Session, path, truth_quat: bool = True, compression: str = "snappy",
+                  compression_level: int | None = None) -> None:
     """Write `session` as one table (Parquet, or CSV by suffix), atomically."""
     path = Path(path)
     table = session_table(session, truth_quat=truth_quat)
     if path.suffix.lower() in PARQUET_SUFFIXES:
         metadata = {**session.metadata, "gyro_unit": "rad/s", "mag_unit": session.mag_unit}
-        _write_atomically(path, lambda tmp: _write_parquet(table, metadata, tmp))
+        write_atomically(path, lambda tmp: _write_parquet(table, metadata, tmp, compression, compression_level))
     else:
-        _write_atomically(path, lambda tmp: table.to_csv(tmp, index=False))
+        write_atomically(path, lambda tmp: table.to_csv(tmp, index=False))
 
 
 def session_table(session: Session, truth_quat: bool = True) -> pd.DataFrame:
@@ -371,11 +372,13 @@ def _spread_onto_times(t_s, t_group_s, samples, names) -> dict[str, np.ndarray]:
     return {name: out[:, k] for k, name in enumerate(names)}
 
 
-def _write_parquet(table: pd.DataFrame, metadata: dict, path: str) -> None:
+def _write_parquet(table: pd.DataFrame, metadata: dict, path: str, compression: str = "snappy",
+                   compression_level: int | None = None) -> None:
     arrow_table = pa.Table.from_pandas(table, preserve_index=False)
     merged = {**(arrow_table.schema.metadata or {}),
               **{str(k).encode(): str(v).encode() for k, v in metadata.items()}}
-    pq.write_table(arrow_table.replace_schema_metadata(merged), path)
+    pq.write_table(arrow_table.replace_schema_metadata(merged), path, compression=compression,
+                   compression_level=compression_level)
 
 
 def write_text_atomically(path, text: str) -> None:
@@ -383,10 +386,10 @@ def write_text_atomically(path, text: str) -> None:
     def write(tmp: str) -> None:
         with open(tmp, "w", encoding="utf-8") as f:
             f.write(text)
-    _write_atomically(Path(path), write)
+    write_atomically(Path(path), write)
 
 
-def _write_atomically(path: Path, write: Callable[[str], None]) -> None:
+def write_atomically(path: Path, write: Callable[[str], None]) -> None:
     """Call `write(tmp)` on a temp file next to `path`, then rename it onto `path`.
 
     On any failure the temp file is removed and `path` is left as it was.
