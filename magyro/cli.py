@@ -64,10 +64,17 @@ def solve(
     loss: str = typer.Option("l2", "--loss", help="Loss on the magnetometer residuals: l2, or huber (robust to spikes and local iron)."),
     time_offset: bool = typer.Option(True, "--time-offset/--no-time-offset", help="Estimate the magnetometer's lag behind the gyro (default) or fix it to 0."),
     keep_rests: bool = typer.Option(False, "--keep-rests", help="Keep the rests at both ends in the solve (default: trimmed, as the paper does)."),
+    method: str = typer.Option("nls", "--method", help="nls (the joint least squares) or ekf (the paper's two steps and error-state EKF)."),
+    history: Optional[Path] = typer.Option(None, "--history", help="--method ekf: write K, bias, m^i and their 1-sigma over time (Parquet)."),
+    history_plot: Optional[Path] = typer.Option(None, "--history-plot", help="--method ekf: plot them like the paper's Fig. 3/6/7 (needs magyro[plot])."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
 ):
-    """The joint calibration: magnetometer ellipsoid, gyro K_g, bias, misalignment, field, attitude."""
+    """The joint calibration: magnetometer ellipsoid, gyro K_g, bias, misalignment, field, attitude.
+
+    --stride, --loss and --time-offset apply to the nls method only.
+    """
     from .calibrate import Options, calibrate
+    from .errors import InputError
     from .io import load_session, write_text_atomically
 
     def action():
@@ -77,7 +84,20 @@ def solve(
             mag_noise_std=mag_noise, stride=stride, force=force, loss=loss,
             estimate_time_offset=time_offset, trim_rests=not keep_rests,
         )
-        cal = calibrate(s, opts)
+        if method not in ("nls", "ekf"):
+            raise InputError(f"unknown method '{method}'; use nls or ekf")
+        if method == "nls" and (history is not None or history_plot is not None):
+            raise InputError("--history and --history-plot need --method ekf (the least squares has no estimate over time)")
+        if method == "ekf":
+            from .ekf import ekf_calibrate, plot_history
+
+            cal, hist = ekf_calibrate(s, opts)
+            if history is not None:
+                hist.write_parquet(history)
+            if history_plot is not None:
+                plot_history(hist, history_plot, title=f"{session.name}: EKF estimates, +/- 3 sigma")
+        else:
+            cal = calibrate(s, opts)
         if output is not None:
             write_text_atomically(output, cal.to_json() + "\n")
         if not quiet:

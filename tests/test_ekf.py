@@ -1,0 +1,301 @@
+"""The paper's own method (magyro.ekf): step-1 magnetometer refinement, the error-state EKF,
+its history, the streaming API. Targets from Wu & Pei Table I (3 sigma over 50 runs)."""
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from magyro import ekf, magfit, so3
+from magyro.calibrate import Options, prepare
+from magyro.errors import InputError
+from magyro.result import UPPER
+from magyro.simulate import load_problem, simulate
+
+# Table I of the paper, 3 sigma
+TABLE1_SCALE = 900e-6
+TABLE1_NONORTH_RAD = np.deg2rad(0.09)
+TABLE1_BIAS_DEG_S = 0.02
+TABLE1_MISALIGNMENT_DEG = 0.06
+
+
+@pytest.fixture(scope="module")
+def paper1():
+    problem = load_problem("paper-table1")
+    session, truth = simulate(problem, 1)
+    cal, history = ekf.ekf_calibrate(session)
+    return problem, session, truth, cal, history
+
+
+def errors(cal, truth):
+    Kg = np.array(truth["gyro"]["K_g"])
+    C = np.array(truth["misalignment"]["C_b_m"])
+    return {
+        "K_g": cal.K_g - Kg,
+        "bias_deg_s": cal.bias_deg_s - np.array(truth["gyro"]["bias_deg_s"]),
+        "misalignment_deg": np.rad2deg(so3.log_so3(C.T @ cal.C_b_m)),
+        "R": cal.R - np.array(truth["magnetometer"]["R"]),
+        "h": cal.h - np.array(truth["magnetometer"]["h"]),
+    }
+
+
+# --------------------------------------------------------------------------- the derivation
+
+
+def started_filter(consider: bool) -> ekf.StreamingCalibrator:
+    """A filter a few steps into a rotation, with a non-trivial K and field."""
+    K = so3.euler_to_dcm([10, 20, 15]) @ np.array([[1.1, 0.1, 0.15], [0, 1.2, 0.2], [0, 0, 1.3]])
+    R = np.array([[1.1, 0.05, -0.02], [0, 0.9, 0.03], [0, 0, 1.05]])
+    h = np.array([0.2, -0.1, 0.3])
+    f = ekf.StreamingCalibrator(R, h, K, np.deg2rad([1.0, 3.0, 2.0]), None, 1e-12, 0.01,
+                                cov_Rh=np.eye(9) * 1e-6 if consider else None)
+    m_i = np.array([0.3, 0.5, -0.81])
+    m_i /= np.linalg.norm(m_i)
+    f.add_gyro(0.0, [0.3, -0.2, 0.5])
+    f.add_mag(0.0, np.linalg.solve(R, m_i) + h)
+    for k in range(1, 30):
+        f.add_gyro(0.01 * k, [0.3 + 0.02 * k, -0.2, 0.5 - 0.01 * k])
+    return f
+
+
+def boxplus(f: ekf.StreamingCalibrator, v: np.ndarray) -> ekf.StreamingCalibrator:
+    """The filter with its nominal state moved by the error v (the filter's error convention)."""
+    g = copy.deepcopy(f)
+    g._C = tuple((f.C @ so3.exp_so3(v[0:3])).reshape(-1))
+    g._K = (f.K + v[3:12].reshape(3, 3, order="F")).reshape(-1).tolist()
+    g._eps = (f.eps + v[12:15]).tolist()
+    m = f.m + f.B @ v[15:17]
+    g._m = (m / np.linalg.norm(m)).tolist()
+    return g
+
+
+def error_between(f: ekf.StreamingCalibrator, g: ekf.StreamingCalibrator) -> np.ndarray:
+    return np.concatenate([so3.log_so3(f.C.T @ g.C), (g.K - f.K).reshape(-1, order="F"), g.eps - f.eps,
+                           f.B.T @ (g.m - f.m)])
+
+
+def test_propagation_jacobian_matches_finite_differences():
+    """F of the error state (docs/ekf.md) against propagating a perturbed nominal state."""
+    f = started_filter(consider=False)
+    rng = np.random.default_rng(0)
+    t_b, y_b = f.t + 0.01, (0.9, -0.3, 0.2)
+    for _ in range(3):
+        v = rng.standard_normal(17) * np.r_[np.full(3, 1e-3), np.full(9, 1e-3), np.full(3, 1e-3), np.full(2, 1e-3)]
+        eps = 1e-4
+        a, b = copy.deepcopy(f), boxplus(f, eps * v)
+        a._propagate(t_b, y_b)
+        b._propagate(t_b, y_b)
+        u = error_between(a, b) / eps
+        g = copy.deepcopy(f)
+        g.P = np.outer(v, v)
+        g._Qc = np.zeros((3, 3))
+        g._propagate(t_b, y_b)                  # P = v v^T  ->  F v (F v)^T
+        expected = np.outer(u, u)
+        np.testing.assert_allclose(g.P, expected, atol=1e-3 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("consider", [False, True])
+def test_measurement_jacobian_matches_finite_differences(consider):
+    """H (attitude, field and the consider block of R, h) against the measurement model."""
+    f = started_filter(consider)
+    R0, h0 = f.R, f.h
+    _, H = f.measurement_jacobian()
+    rng = np.random.default_rng(1)
+
+    def z_of(v):
+        g = boxplus(f, v[:17])
+        R_t, h_t = R0.copy(), h0.copy()
+        if consider:
+            for n, (i, j) in enumerate(UPPER):
+                R_t[i, j] += v[17 + n]
+            h_t = h_t + v[23:26]
+        y = np.linalg.solve(R_t, g.C.T @ g.m) + h_t   # the noise-free raw reading of the perturbed truth
+        return R0 @ (y - h0)                           # what the filter computes from it
+
+    for _ in range(3):
+        v = rng.standard_normal(f.n)
+        eps = 1e-6
+        fd = (z_of(eps * v) - z_of(-eps * v)) / (2 * eps)
+        np.testing.assert_allclose(H @ v, fd, atol=1e-7)
+
+
+# --------------------------------------------------------------------------- accuracy (paper Table I)
+
+
+def test_paper_table1_errors_within_table_I_3_sigma(paper1):
+    """The whole two-step method (ellipsoid + Newton, then the EKF) against the paper's Table I."""
+    _, _, truth, cal, _ = paper1
+    e = errors(cal, truth)
+    scale = np.abs(np.diag(e["K_g"]))
+    nonorth = np.abs(e["K_g"][np.triu_indices(3, 1)])
+    assert np.all(scale < TABLE1_SCALE), scale
+    assert np.all(nonorth < TABLE1_NONORTH_RAD), nonorth
+    assert np.all(np.abs(e["bias_deg_s"]) < TABLE1_BIAS_DEG_S), e["bias_deg_s"]
+    assert np.all(np.abs(e["misalignment_deg"]) < TABLE1_MISALIGNMENT_DEG), e["misalignment_deg"]
+
+
+def test_reported_std_covers_the_actual_error(paper1):
+    """|error| < 4 sigma for every reported gyro and magnetometer parameter, and sigma is not inflated."""
+    _, _, truth, cal, _ = paper1
+    e = errors(cal, truth)
+    iu = np.triu_indices(3)
+    pairs = [
+        (e["K_g"][iu], cal.std["K_g"][iu]),
+        (e["bias_deg_s"], cal.std["bias_deg_s"]),
+        (e["misalignment_deg"], cal.std["misalignment_deg"]),
+        (e["R"][iu], cal.std["R"][iu]),
+        (e["h"], cal.std["h"]),
+    ]
+    z = np.concatenate([err / sd for err, sd in pairs])
+    assert np.all(np.abs(z) < 4.0), np.round(z, 1)
+    # a std 5x too large would also pass the line above: the errors must look like the std
+    assert 0.25 < np.sqrt(np.mean(z**2)) < 2.0, np.round(z, 1)
+
+
+def test_calibration_fields_like_the_nls(paper1):
+    _, session, _, cal, _ = paper1
+    assert cal.solver["method"] == "ekf"
+    assert cal.solver["status"] == "done"
+    assert cal.solver["iterations"] == cal.solver["gyro_samples"] + cal.solver["mag_updates"]
+    assert cal.solver["iterations"] >= len(session.t_gyro_s) + len(session.t_mag_s) - 3
+    assert cal.solver["seconds"] > 0
+    assert cal.observability["rank"] == 12
+    d = cal.to_dict()
+    for key in ("K_g", "bias_deg_s", "misalignment_deg", "R", "h"):
+        assert key in d["std"]
+    assert np.isclose(np.linalg.norm(cal.field_i), 1.0)
+    assert 2.5 < cal.fit["normalised_innovation_squared_mean"] < 3.5   # 3 for a consistent filter
+
+
+# --------------------------------------------------------------------------- history
+
+
+def test_history_columns_and_final_row_equals_the_calibration(paper1, tmp_path):
+    _, _, _, cal, history = paper1
+    df = history.to_frame()
+    assert list(df.columns) == ekf.HISTORY_COLUMNS
+    for name in ("t_s", "K11", "K23", "K33", "bias_x_deg_s", "bias_z_deg_s", "m_i_y", "K11_std",
+                 "bias_y_deg_s_std", "m_i_z_std"):
+        assert name in df.columns
+    assert 100 < len(df) <= ekf.HISTORY_ROWS
+    assert np.all(np.diff(df["t_s"].to_numpy()) > 0)
+    last = df.iloc[-1]
+    K = np.array([[last[f"K{i}{j}"] for j in (1, 2, 3)] for i in (1, 2, 3)])
+    K_std = np.array([[last[f"K{i}{j}_std"] for j in (1, 2, 3)] for i in (1, 2, 3)])
+    np.testing.assert_array_equal(K, cal.K)
+    np.testing.assert_allclose(K_std, cal.std["K"], rtol=1e-6)
+    np.testing.assert_allclose([last[n] for n in ekf.BIAS_NAMES], cal.bias_deg_s, rtol=1e-12)
+    # analytic QR differential (history) against central differences (calibration)
+    np.testing.assert_allclose([last[n + "_std"] for n in ekf.BIAS_NAMES], cal.std["bias_deg_s"], rtol=1e-4)
+    np.testing.assert_allclose([last[n] for n in ekf.FIELD_NAMES], cal.field_i, rtol=1e-12)
+    np.testing.assert_allclose([last[n + "_std"] for n in ekf.FIELD_NAMES], cal.std["field_i"], rtol=1e-6)
+    # the estimates converge: the last std is far below the first
+    assert df["K11_std"].iloc[-1] < 0.1 * df["K11_std"].iloc[0]
+    path = tmp_path / "history.parquet"
+    history.write_parquet(path)
+    import pandas as pd
+
+    back = pd.read_parquet(path)
+    assert list(back.columns) == ekf.HISTORY_COLUMNS and len(back) == len(df)
+
+
+def test_plot_history_writes_a_figure(paper1, tmp_path):
+    _, _, _, _, history = paper1
+    path = tmp_path / "history.png"
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        with pytest.raises(InputError, match=r"magyro\[plot\]"):
+            ekf.plot_history(history, path)
+        return
+    ekf.plot_history(history, path)
+    assert path.stat().st_size > 10_000
+
+
+# --------------------------------------------------------------------------- streaming
+
+
+def test_streaming_one_sample_at_a_time_equals_the_batch(paper1):
+    """Samples arriving one by one, the magnetometer up to 40 ms late, give the batch's final estimate."""
+    _, session, _, cal, _ = paper1
+    prep = prepare(session, Options())
+    s = prep.session
+    ref = ekf.refine_magnetometer(s.mag, prep.fit.R, prep.fit.h, prep.sigma_mag)
+    init = ekf.initial_estimate(s, ref)
+    f = ekf.StreamingCalibrator(ref.R, ref.h, init.K0, init.eps0, None, prep.gyro_density, prep.sigma_mag,
+                                P0=init.P0, cov_Rh=ref.covariance, latency_s=0.05)
+    rng = np.random.default_rng(7)
+    # each sensor's stream stays in order; the magnetometer's arrives 0-40 ms late
+    mag_arrival = np.maximum.accumulate(s.t_mag_s + rng.uniform(0.0, 0.04, len(s.t_mag_s)))
+    arrival = np.concatenate([s.t_gyro_s, mag_arrival])
+    kind = np.r_[np.zeros(len(s.t_gyro_s), int), np.ones(len(s.t_mag_s), int)]
+    index = np.r_[np.arange(len(s.t_gyro_s)), np.arange(len(s.t_mag_s))]
+    seen = None
+    for n in np.lexsort((kind, arrival)):
+        i = index[n]
+        if kind[n] == 0:
+            f.add_gyro(s.t_gyro_s[i], s.gyro_rad_s[i])
+        else:
+            f.add_mag(s.t_mag_s[i], s.mag[i])
+        if seen is None and f.mag_updates >= 200:
+            seen = f.estimate()       # readable mid-stream
+    f.flush()
+    assert f.skipped_mag == 0
+    np.testing.assert_allclose(f.K, cal.K, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(f.eps, cal.eps_rad_s, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(f.m, cal.field_i, rtol=0, atol=1e-13)
+    est = f.estimate()
+    np.testing.assert_allclose(est["bias_deg_s"], cal.bias_deg_s, atol=1e-12)
+    np.testing.assert_allclose(est["C_b_m"], cal.C_b_m, atol=1e-12)
+    for key in ("K_g", "bias_deg_s", "misalignment_deg", "field_i"):
+        assert np.all(est["std"][key][np.asarray(est["std"][key]) != 0] > 0)
+    np.testing.assert_allclose(est["std"]["K_g"], cal.std["K_g"], rtol=1e-3)
+    assert seen is not None and seen["mag_updates"] >= 200
+    assert np.all(seen["std"]["bias_deg_s"] > est["std"]["bias_deg_s"])
+
+
+def test_streaming_rejects_time_going_backwards():
+    f = ekf.StreamingCalibrator(np.eye(3), np.zeros(3), np.eye(3), np.zeros(3), None, 1e-4, 0.01)
+    f.add_gyro(1.0, [0, 0, 0])
+    with pytest.raises(InputError):
+        f.add_gyro(1.0, [0, 0, 0])
+    f.add_mag(0.5, [1, 0, 0])               # before the filter's time: skipped, not an error
+    assert f.skipped_mag == 1
+    f.add_mag(1.2, [1, 0, 0])
+    with pytest.raises(InputError):
+        f.add_mag(1.1, [1, 0, 0])
+
+
+# --------------------------------------------------------------------------- step 1
+
+
+def test_newton_refinement_reduces_the_norm_residual_with_hard_and_soft_iron():
+    problem = load_problem("phone-module")
+    session, _ = simulate(problem, 1)
+    fit = magfit.fit_ellipsoid(session.mag, problem.mag_noise_std)
+    plain = ekf.refine_magnetometer(session.mag, fit.R, fit.h)
+    assert plain.cost < plain.cost_initial
+    assert plain.rms_norm_error < fit.rms_norm_error
+    corrected = ekf.refine_magnetometer(session.mag, fit.R, fit.h, problem.mag_noise_std)
+    assert corrected.rms_norm_error < fit.rms_norm_error
+    for ref in (plain, corrected):
+        assert np.allclose(np.tril(ref.R, -1), 0.0) and np.all(np.diag(ref.R) > 0)
+    z = np.concatenate([[(corrected.R - problem.R)[i, j] for i, j in UPPER], corrected.h - problem.hard_iron])
+    assert np.all(np.abs(z / np.sqrt(np.diag(corrected.covariance))) < 4.0)
+
+
+def test_plain_newton_is_biased_on_part_of_the_sphere_and_the_corrected_score_is_not():
+    """paper-table1's field covers a cap: sum (|R(y-h)|^2 - 1)^2 drifts along the cap's weak direction."""
+    problem = load_problem("paper-table1")
+    session, _ = simulate(problem, 1)
+    fit = magfit.fit_ellipsoid(session.mag, problem.mag_noise_std)
+
+    def zscores(ref):
+        e = np.concatenate([[(ref.R - problem.R)[i, j] for i, j in UPPER], ref.h - problem.hard_iron])
+        return e / np.sqrt(np.diag(ref.covariance))
+
+    plain = ekf.refine_magnetometer(session.mag, fit.R, fit.h)
+    corrected = ekf.refine_magnetometer(session.mag, fit.R, fit.h, problem.mag_noise_std)
+    assert np.max(np.abs(zscores(plain))) > 5.0
+    assert np.max(np.abs(zscores(corrected))) < 4.0
