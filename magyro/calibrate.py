@@ -26,7 +26,7 @@ from .errors import InputError, ObservabilityError, SolverError
 from .initial import linear_gyro_estimate, with_time_offset
 from .observability import ObservabilityAnalysis, analyse
 from .problem import N_GLOBAL, TIME_OFFSET_SCALE_S, Grid, JointProblem, Linearisation, build_grid
-from .result import N_REPORTED, Calibration, qr_split, reported_vector, std_from_covariance
+from .result import N_REPORTED, Calibration, axis_mapping_warning, qr_split, reported_vector, std_from_covariance
 from .session import Session
 
 NODE_RATE_HZ = 100.0
@@ -35,7 +35,9 @@ NOISE_RESCALE_TOLERANCE = 0.2     # re-solve when the robust residual scale is o
 TIME_OFFSET_RELOOK_S = 1e-3       # re-solve when the offset moved the gyro look-up by more than this
 CHI2_3DOF_MEDIAN = 2.3660         # median of |r|^2 for a 3-vector of unit normals
 SUSPECT_WINDOW_S = 1.0
-SUSPECT_FACTOR = 3.0
+SUSPECT_FACTOR = 5.0            # BROAD: undisturbed trials reach 3.6x, a magnet beside the path 7.5x
+FIELD_WINDOW_S = 0.5
+MAX_FIELD_CHANGE = 0.05         # BROAD: 1-3 % across the capture volume; a magnet beside the path 7 %
 MAX_DECREMENT = 1e-3  # chi^2 units: a step that would remove less than this changes nothing that matters
 MIN_RATE_RATIO = 0.1
 
@@ -118,6 +120,14 @@ def noise_levels(session: Session, options: Options, found: rests.Rests) -> Nois
     return NoiseLevels(float(mag_sample), float(gyro_sample), float(mag_eff), float(density), source)
 
 
+MAG_MUST_FOLLOW_DEG = 180.0
+
+
+def gyro_angle_turned_deg(session: Session) -> float:
+    """Total angle the raw gyro says the device turned (integral of |w| dt)."""
+    return float(np.rad2deg(np.sum(np.linalg.norm(session.gyro_rad_s[1:], axis=1) * np.diff(session.t_gyro_s))))
+
+
 def check_gyro_unit(session: Session, field_m: np.ndarray) -> None:
     """The gyro must turn the field as fast as the magnetometer sees it turn; deg/s labelled rad/s turns it 57x too fast."""
     t, y = session.t_gyro_s, session.gyro_rad_s
@@ -149,6 +159,12 @@ def prepare(session: Session, options: Options) -> Prepared:
     try:
         fit = magfit.fit_ellipsoid(session.mag, mag_sample)
     except magfit.DegenerateCloud as cloud:
+        turned_deg = gyro_angle_turned_deg(session)
+        if cloud.kind == "static" and turned_deg > MAG_MUST_FOLLOW_DEG:
+            raise InputError(
+                f"the gyro turned {turned_deg:.0f} deg but the magnetometer readings do not follow: they vary no "
+                "more than their own noise; check that mx, my, mz are a magnetometer and are not noise or constant"
+            ) from None
         field = magfit.surrogate_field_directions(session.mag)
         analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, mag_sample / np.mean(np.linalg.norm(session.mag, axis=1)))
         raise ObservabilityError(
@@ -190,6 +206,7 @@ def linearise(prep: Prepared, grid: Grid, options: Options) -> Linearisation:
         lin0 = with_time_offset(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, prep.field_m)
     else:
         lin0 = linear_gyro_estimate(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, prep.field_m, time_offset_s=options.time_offset_s)
+    qr_split(lin0.K)  # a mirrored gyro shows already in the linear estimate: say so before solving
     C = nominal_attitudes(s, lin0.K, lin0.eps, grid.t_node_s)
     m0 = initial_field(C, prep.field_m[grid.node_mag_index])
     S0 = np.linalg.inv(prep.fit.R)
@@ -415,6 +432,21 @@ def suspect_segments(problem: JointProblem, grid: Grid, x, p) -> list[dict]:
     return out
 
 
+def field_magnitude_change(session: Session, R: np.ndarray, h: np.ndarray) -> dict:
+    """Largest departure of the calibrated field magnitude |R (y - h)| from 1, over FIELD_WINDOW_S windows.
+
+    The method assumes a homogeneous field: its magnitude must not change along
+    the path. A magnet or iron near the path shows as a local change.
+    """
+    norm = np.linalg.norm(magfit.calibrated_field(R, h, session.mag), axis=1)
+    window = np.floor((session.t_mag_s - session.t_mag_s[0]) / FIELD_WINDOW_S).astype(int)
+    mean = np.bincount(window, weights=norm) / np.maximum(np.bincount(window), 1)
+    dev = np.abs(mean - 1.0)
+    worst = int(np.argmax(dev))
+    return {"max_fraction": float(dev[worst]), "at_s": float(session.t_mag_s[0] + (worst + 0.5) * FIELD_WINDOW_S),
+            "median_fraction": float(np.median(dev))}
+
+
 def rest_check(found: rests.Rests | None, K_g: np.ndarray, bias_rad_s: np.ndarray) -> dict | None:
     """The bias the rests imply (eps_b = -K_g mean(y_rest)) against the estimate."""
     if found is None or found.gyro_mean_rad_s is None:
@@ -427,8 +459,24 @@ def rest_check(found: rests.Rests | None, K_g: np.ndarray, bias_rad_s: np.ndarra
     }
 
 
-def warnings_for(segments: list[dict], rest: dict | None, analysis: ObservabilityAnalysis) -> list[str]:
+def warnings_for(segments: list[dict], rest: dict | None, analysis: ObservabilityAnalysis, C_b_m: np.ndarray,
+                 fit: magfit.EllipsoidFit, field_change: dict) -> list[str]:
     out = []
+    if field_change["max_fraction"] > MAX_FIELD_CHANGE:
+        out.append(
+            f"the field magnitude changes by {100 * field_change['max_fraction']:.1f}% around "
+            f"{field_change['at_s']:.1f} s (typically {100 * field_change['median_fraction']:.1f}%): the field is not "
+            "homogeneous there (a magnet or iron near the path) or the magnetometer is not linear; this calibration "
+            "assumes a homogeneous field, so re-record away from iron, or try --loss huber"
+        )
+    if fit.uniqueness < magfit.MIN_UNIQUENESS:
+        out.append(
+            f"the field directions cover little of the sphere (ellipsoid uniqueness {fit.uniqueness:.2f}): "
+            "the magnetometer's R and h rest on the gyro as much as on the ellipsoid; turn through more orientations"
+        )
+    mapping = axis_mapping_warning(C_b_m)
+    if mapping:
+        out.append(mapping)
     for seg in segments:
         out.append(
             f"the magnetometer does not fit the model during {seg['t0_s']:.1f}-{seg['t1_s']:.1f} s "
@@ -456,6 +504,7 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
     segments = suspect_segments(problem, grid, sol.x, sol.p)
     rest = rest_check(prep.rests, Kg, C.T @ eps)
     fit["suspect_segments"] = segments
+    fit["field_change"] = field_magnitude_change(prep.session, np.linalg.inv(S), h)
     a = prep.analysis
     stats = sol.stats
     return Calibration(
@@ -473,6 +522,6 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
         time_offset_s=tau,
         time_offset_estimated=problem.n_theta > N_GLOBAL,
         rests=rest,
-        warnings=warnings_for(segments, rest, a),
+        warnings=warnings_for(segments, rest, a, C, prep.fit, fit["field_change"]),
         covariance_theta=cov_theta,
     )

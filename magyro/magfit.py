@@ -20,7 +20,8 @@ class EllipsoidFit:
     R: np.ndarray           # 3x3 upper triangular, positive diagonal, 1/(input unit)
     h: np.ndarray           # (3,) hard iron, input unit
     rms_norm_error: float   # RMS of |R (y - h)| - 1 over the samples
-    uniqueness: float       # ratio of the two smallest singular values of the fit (>> 1 when unique)
+    uniqueness: float       # ratio of the two smallest singular values of the fit (>> 1 when unique;
+                            # below MIN_UNIQUENESS the joint solve leans on the gyro for R and h)
 
 
 class DegenerateCloud(Exception):
@@ -82,20 +83,48 @@ def fit_ellipsoid(y_mag: np.ndarray, noise_std: float = 0.0) -> EllipsoidFit:
     u = (y - centre) / scale
     _, s, Vt = np.linalg.svd(quadric_design_matrix(u), full_matrices=False)
     uniqueness = float(s[-2] / max(s[-1], 1e-300))
-    if uniqueness < MIN_UNIQUENESS:
-        raise DegenerateCloud(
-            "sparse",
-            "the magnetometer readings do not determine an ellipsoid: the field directions cover too little "
-            "of the sphere (rotation about one or two axes only?)",
-        )
-    v = Vt[-1]
-    A, b, c = quadric_from_vector(v)
-    R_u, h_u = ellipsoid_shape(A, b, c)
+    A, b, c = quadric_from_vector(Vt[-1])
+    try:
+        R_u, h_u = ellipsoid_shape(A, b, c)
+    except InputError:
+        # the unconstrained quadric is not an ellipsoid: the one constrained to be one may still fit well
+        R_u, h_u = ellipsoid_shape(*quadric_from_vector(ellipsoid_specific_vector(quadric_design_matrix(u))))
+        r = np.linalg.norm((u - h_u) @ R_u.T, axis=1) - 1.0
+        if np.sqrt(np.mean(r**2)) > MAX_CONSTRAINED_NORM_ERROR:
+            if uniqueness < MIN_UNIQUENESS:  # a family of quadrics fits: the coverage, not the data, is at fault
+                raise DegenerateCloud(
+                    "sparse",
+                    "the magnetometer readings do not determine an ellipsoid: the field directions cover too little "
+                    "of the sphere (rotation about one or two axes only?)",
+                ) from None
+            raise
     # back to the input unit: u = (y - centre)/scale
     R = R_u / scale
     h = centre + scale * h_u
     r = np.linalg.norm((y - h) @ R.T, axis=1) - 1.0
     return EllipsoidFit(R=R, h=h, rms_norm_error=float(np.sqrt(np.mean(r**2))), uniqueness=uniqueness)
+
+
+MAX_CONSTRAINED_NORM_ERROR = 0.1
+LI_GRIFFITHS_K = 4.0
+
+
+def ellipsoid_specific_vector(D: np.ndarray) -> np.ndarray:
+    """Quadric vector of the least-squares ellipsoid (Li & Griffiths 2004, constraint k J - I^2 = 1, k = 4).
+
+    Always an ellipsoid; exact for near-spheres such as magnetometer clouds.
+    """
+    k = LI_GRIFFITHS_K
+    S = D.T @ D
+    S11, S12, S22 = S[:6, :6], S[:6, 6:], S[6:, 6:]
+    C1 = np.zeros((6, 6))
+    C1[:3, :3] = k / 2.0 - 1.0
+    np.fill_diagonal(C1[:3, :3], -1.0)
+    C1[3:, 3:] = -k * np.eye(3)
+    M = np.linalg.solve(C1, S11 - S12 @ np.linalg.solve(S22, S12.T))
+    lam, V = np.linalg.eig(M)
+    v1 = np.real(V[:, int(np.argmax(np.real(lam)))])
+    return np.concatenate([v1, -np.linalg.solve(S22, S12.T @ v1)])
 
 
 def ellipsoid_shape(A: np.ndarray, b: np.ndarray, c: float) -> tuple[np.ndarray, np.ndarray]:

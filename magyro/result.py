@@ -22,19 +22,36 @@ N_REPORTED = 34
 def qr_split(K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(C_b_m, K_g) with K = C_b_m K_g, K_g upper triangular with positive diagonal.
 
-    Raises InputError when C_b_m would be improper (det -1): the magnetometer
-    axes are then a mirror image of the gyro axes.
+    Raises InputError when C_b_m would be improper (det -1). Only the gyro's
+    handedness can show up here: a mirrored magnetometer is absorbed by the
+    model (y -> D y is fitted by D R^-1 D, D C D and K -> -D K, all proper), so
+    it appears instead as a misalignment near 180 deg (see `axis_mapping_warning`).
     """
     Q, Rq = np.linalg.qr(K)
     D = np.diag(np.sign(np.diag(Rq)))
     C, Kg = Q @ D, D @ Rq
     if np.linalg.det(C) < 0:
         raise InputError(
-            "the magnetometer axes are a mirror image of the gyro axes (det C_b_m = -1): the axis mapping is "
-            "wrong, as on chips whose magnetometer is left-handed; negate or swap magnetometer axes "
-            "(e.g. swap mx and my and negate mz) and solve again"
+            "the gyro axes are a mirror image of the magnetometer's (det C_b_m = -1): the gyro's axis mapping is "
+            "wrong (one gyro axis negated, or two swapped); negate one gyro column (e.g. gz) or swap two, "
+            "and solve again"
         )
     return C, Kg
+
+
+MISALIGNMENT_WARNING_DEG = 90.0
+
+
+def axis_mapping_warning(C_b_m: np.ndarray) -> str | None:
+    """A plain warning when the gyro-to-magnetometer rotation is too large to be a mounting tolerance."""
+    angle = float(np.rad2deg(np.linalg.norm(so3.log_so3(C_b_m))))
+    if angle <= MISALIGNMENT_WARNING_DEG:
+        return None
+    return (
+        f"the gyro-to-magnetometer misalignment is {angle:.0f} deg: far more than a mounting tolerance. "
+        "An axis mapping is probably wrong (a magnetometer axis negated or swapped looks exactly like this); "
+        "check the axis conventions of both sensors"
+    )
 
 
 @dataclass
