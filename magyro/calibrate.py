@@ -305,18 +305,20 @@ def predicted_std(prep: Prepared, options: Options | None = None) -> dict:
     return information_std(problem, lin, p)
 
 
-def information_std(problem: JointProblem, lin: Linearisation, p) -> dict:
-    """One-sigma of every reported parameter from the Gauss-Newton information at the linearisation point.
-
-    inf where the information is singular (a direction the data do not see).
-    """
+def information_covariance(problem: JointProblem, lin: Linearisation, p) -> np.ndarray:
+    """Covariance of the reported vector (result.REPORTED layout) from the Gauss-Newton information
+    at the linearisation point; all inf where the information is singular (a direction the data do not see)."""
     info = reduce_hessian(to_scipy(problem.hessian_function(np.zeros(problem.n_x), p)), problem.n_theta).information
     lam = np.linalg.eigvalsh(info)
     if lam[0] <= lam[-1] * 1e-14:
-        return {k: np.full_like(np.asarray(v, dtype=float), np.inf) for k, v in std_from_covariance(np.eye(N_REPORTED)).items()}
+        return np.full((N_REPORTED, N_REPORTED), np.inf)
     C0, _ = qr_split(lin.K0)
-    g = p[: problem.n_glob_p]
-    return std_from_covariance(propagate(problem, np.zeros(problem.n_theta), g, np.linalg.inv(info), C0))
+    return propagate(problem, np.zeros(problem.n_theta), p[: problem.n_glob_p], np.linalg.inv(info), C0)
+
+
+def information_std(problem: JointProblem, lin: Linearisation, p) -> dict:
+    """One-sigma of every reported parameter from the Gauss-Newton information at the linearisation point."""
+    return std_from_covariance(information_covariance(problem, lin, p))
 
 
 def magnetometer_noise_factor(problem: JointProblem, x, p) -> float:

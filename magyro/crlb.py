@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import rests
-from .calibrate import Options, default_stride, information_std
+from .calibrate import Options, default_stride, information_covariance
+from .result import std_from_covariance
 from .problem import JointProblem, Linearisation, build_grid
 from .session import Session
 from .simulate import Problem, field_i, truth_attitude
@@ -37,6 +38,11 @@ def moving_part(problem: Problem, session: Session, options: Options) -> Session
 
 def cramer_rao_std(problem: Problem, session: Session, options: Options | None = None) -> dict:
     """CRLB one-sigma of every reported parameter (laid out like Calibration.std)."""
+    return std_from_covariance(cramer_rao_covariance(problem, session, options))
+
+
+def cramer_rao_covariance(problem: Problem, session: Session, options: Options | None = None) -> np.ndarray:
+    """CRLB covariance of the reported vector (result.REPORTED layout)."""
     options = options or Options()
     s = moving_part(problem, session, options)
     grid = build_grid(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, options.stride or default_stride(s))
@@ -44,4 +50,4 @@ def cramer_rao_std(problem: Problem, session: Session, options: Options | None =
     jp = JointProblem(grid, compiled=options.compiled, estimate_time_offset=options.estimate_time_offset)
     p = jp.parameters(lin, s.mag, problem.mag_noise_std, problem.gyro_noise_density_rad_s_sqrt_hz,
                       s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, problem.mag_time_offset_s)
-    return information_std(jp, lin, p)
+    return information_covariance(jp, lin, p)
