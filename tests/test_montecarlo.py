@@ -1,0 +1,321 @@
+"""`magyro montecarlo`: the Table-I study, its arithmetic, failure accounting and the Cramer-Rao bound.
+
+The small Monte Carlo (4 runs of short-30s) is solved once per module; the
+rest is arithmetic on its result, a few CRLB evaluations and two short
+command-line runs.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import subprocess
+import sys
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from magyro import montecarlo as mc
+from magyro.calibrate import Options
+from magyro.crlb import cramer_rao_std, moving_part
+from magyro.errors import InputError, ObservabilityError, SolverError
+from magyro.problem import build_grid
+from magyro.result import UPPER
+from magyro.simulate import field_i, load_problem, simulate, truth_attitude
+
+PROBLEM = "short-30s"
+RUNS = 4
+SEED0 = 0
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return load_problem(PROBLEM)
+
+
+@pytest.fixture(scope="module")
+def small(problem):
+    """4 runs of short-30s, in this process, with the progress calls recorded."""
+    calls = []
+    result = mc.run_montecarlo(problem, RUNS, jobs=1, seed0=SEED0,
+                               progress=lambda done, total, outcomes: calls.append((done, total, outcomes)))
+    return SimpleNamespace(result=result, calls=calls)
+
+
+def gyro_rows(method_result):
+    return [r for r in method_result.rows if r.group in mc.GYRO_GROUPS]
+
+
+# --------------------------------------------------------------------------- arithmetic
+
+
+def test_every_run_is_reported_once_in_seed_order(small):
+    r = small.result
+    nls = r["nls"]
+    assert [o.seed for o in nls.outcomes] == list(range(SEED0, SEED0 + RUNS))
+    assert all(o.ok for o in nls.outcomes), [o.error for o in nls.failed]
+    assert r.all_succeeded and r.failed_count == 0
+    assert [c[0] for c in small.calls] == list(range(1, RUNS + 1))
+    assert {c[1] for c in small.calls} == {RUNS}
+    assert sorted(c[2][0].seed for c in small.calls) == r.seeds
+
+
+def test_table_arithmetic_recomputed_from_the_runs(small, problem):
+    """mean, std (ddof=1) and every ratio, recomputed from the per-run estimates, here and in the JSON."""
+    r = small.result
+    nls = r["nls"]
+    names = [row.name for row in nls.rows]
+    expected = [f"K_g[{i},{j}]" for i, j in UPPER] + [f"bias_deg_s[{i}]" for i in range(3)]
+    assert names[:9] == expected
+    assert "time_offset_s" in names  # the NLS estimates the lag by default
+    for row in nls.rows:
+        x = np.array([o.estimate[row.name] for o in nls.outcomes])
+        s = float(np.sqrt(np.sum((x - x.mean()) ** 2) / (len(x) - 1)))
+        assert row.n == RUNS
+        assert row.mean == pytest.approx(x.mean(), rel=1e-12, abs=1e-15)
+        assert row.std == pytest.approx(s, rel=1e-9)
+        assert row.crlb == r.crlb[row.name]
+        assert row.std_over_crlb == pytest.approx(s / row.crlb, rel=1e-9)
+        assert row.mean_error_over_std == pytest.approx((x.mean() - row.truth) / s, rel=1e-9, abs=1e-12)
+        if row.group == "euler_deg":  # no solver reports an Euler-angle std
+            assert math.isnan(row.reported_over_actual)
+        else:
+            rep = np.mean([o.reported_std[row.name] for o in nls.outcomes])
+            assert row.reported_over_actual == pytest.approx(rep / s, rel=1e-9)
+
+    # The truth column is the problem's (d = 0 at truth), and the JSON carries the same numbers.
+    truth = mc.truth_values(problem)
+    assert truth["K_g[1,2]"] == problem.K_g[1, 2] and truth["misalignment_deg[2]"] == 0.0
+    d = json.loads(r.to_json())
+    assert d["schema"] == "magyro.montecarlo/1" and d["seeds"] == r.seeds
+    table = {p["name"]: p for p in d["methods"]["nls"]["parameters"]}
+    runs = d["methods"]["nls"]["runs"]
+    for name in ("K_g[0,0]", "bias_deg_s[2]", "misalignment_deg[1]", "h[0]"):
+        x = np.array([run["estimate"][name] for run in runs])
+        assert table[name]["mean"] == pytest.approx(x.mean(), rel=1e-12, abs=1e-15)
+        assert table[name]["std"] == pytest.approx(x.std(ddof=1), rel=1e-9)
+
+
+def test_misalignment_is_d_with_C_true_equal_C_est_Exp_d(problem):
+    """estimate_values: d = Log(C_est^T C_true), so C_true = C_est Exp(d); Euler angles of C_est."""
+    from magyro import so3
+
+    d_true = np.array([0.01, -0.02, 0.03])  # rad
+    C_est = problem.C_b_m @ so3.exp_so3(-d_true)  # then C_true = C_est Exp(d_true)
+    cal = SimpleNamespace(K_g=problem.K_g, bias_rad_s=problem.gyro_bias_rad_s, C_b_m=C_est, R=problem.R,
+                          h=problem.hard_iron, time_offset_s=0.0, time_offset_estimated=False)
+    est = mc.estimate_values(cal, problem)
+    assert [est[f"misalignment_deg[{i}]"] for i in range(3)] == pytest.approx(np.rad2deg(d_true), rel=1e-9)
+    assert [est[f"euler_deg[{i}]"] for i in range(3)] == pytest.approx(so3.dcm_to_euler(C_est), rel=1e-12)
+    assert "time_offset_s" not in est
+
+
+def test_estimates_scatter_around_truth(small):
+    """|mean - truth| < 4 sigma / sqrt(n) for every gyro parameter.
+
+    sigma is the larger of the observed std and the CRLB: with 4 runs a sample
+    std can come out small by chance (its 95 % range is 0.27-1.77 sigma), and
+    the CRLB is the spread an unbiased estimator cannot beat, so an unbiased
+    NLS leaves this band with probability ~6e-5 per parameter.
+    """
+    for row in gyro_rows(small.result["nls"]):
+        sigma = max(row.std, row.crlb)
+        assert abs(row.mean - row.truth) < 4 * sigma / math.sqrt(row.n) + 1e-12, row
+
+
+def test_crlb_agrees_with_the_observed_spread(small):
+    """The errors against truth, in units of the CRLB, have an RMS near 1 (band [0.5, 2]).
+
+    Pooled over the 12 gyro parameters and 4 runs (48 errors): for an
+    efficient estimator the RMS is 1 within ~15 %; a CRLB off by 2x fails.
+    """
+    nls = small.result["nls"]
+    z = [(o.estimate[row.name] - row.truth) / row.crlb for row in gyro_rows(nls) for o in nls.outcomes]
+    rms = float(np.sqrt(np.mean(np.square(z))))
+    assert 0.5 <= rms <= 2.0, rms
+    ratios = [row.std_over_crlb for row in gyro_rows(nls)]
+    assert 0.5 <= float(np.sqrt(np.mean(np.square(ratios)))) <= 2.0, ratios
+
+
+def test_euler_crlb_uses_the_crlb_covariance(small, problem):
+    """crlb_covariance is cramer_rao_std before the diagonal: the same std, so the Euler rows are consistent."""
+    from magyro.result import REPORTED
+
+    session, _ = simulate(problem, SEED0)
+    cov = mc.crlb_covariance(problem, session, Options())
+    sd = np.sqrt(np.diag(cov))
+    crlb = small.result.crlb
+    assert sd[REPORTED["misalignment_deg"]] == pytest.approx([crlb[f"misalignment_deg[{i}]"] for i in range(3)], rel=1e-6)
+    assert sd[REPORTED["bias_deg_s"]] == pytest.approx([crlb[f"bias_deg_s[{i}]"] for i in range(3)], rel=1e-6)
+    # Euler errors are J d with J the Jacobian of dcm2eul: a rotation about a near-identity frame gives J ~ I.
+    J = mc.euler_jacobian_deg_per_rad(np.eye(3))
+    assert J == pytest.approx(np.rad2deg(np.eye(3)), abs=1e-6)
+
+
+# --------------------------------------------------------------------------- the CRLB in closed form
+
+
+def test_crlb_of_hard_iron_against_closed_forms(problem):
+    """The CRLB of h against two analytic lower bounds, and their closeness.
+
+    Magnetometer samples j = 1..N (the ones the joint problem uses):
+        y_j = S v_j + h + n_j,   n_j ~ N(0, sigma^2 I),  S = R^-1 upper triangular,
+        v_j = C_i^m(t_j) m^i  (unit field in the m frame).
+    The gyro residuals do not involve h. With theta = (h, psi), psi all other
+    unknowns, the Fisher information has the block I_hh = sum_j I / sigma^2 =
+    N / sigma^2 I, and
+        CRLB(h) = (I_hh - I_hpsi I_psipsi^-1 I_psih)^-1  >=  I_hh^-1 = sigma^2 / N I
+    (a Schur complement can only remove information), so
+        (1)  crlb(h_a) >= sigma / sqrt(N).
+    h is not just a per-axis mean, though: the field directions v_j do not
+    average to zero over a session, so h trades off against the soft iron S.
+    With only S and h unknown (attitude, field, gyro known), axis a is the
+    linear regression y_ja = sum_{b >= a} S_ab v_jb + h_a + n, whose intercept
+    has the (efficient, Gaussian) variance
+        (2)  sigma^2 / N (1 + xbar^T Sxx^-1 xbar),  x_j = (v_jb)_{b >= a},
+    xbar the mean and Sxx the (1/N) covariance of the regressors. Leaving the
+    attitude, K, eps, m^i and the time offset unknown can only enlarge the
+    bound, so crlb(h_a) >= (2) >= (1). With a near-perfect gyro the attitude is
+    pinned down by the 15 gyro/field/offset unknowns, so (2) should be close:
+    measured crlb/(2) = 1.32, 1.22, 1.60 on short-30s (1/sqrt(N) alone is 3x off).
+    Finally the Fisher information is linear in 1/sigma^2 when both noises
+    scale together, so (3) doubling both noise levels doubles every CRLB.
+    """
+    options = Options()
+    quiet_gyro = dataclasses.replace(problem, gyro_noise_density_deg_s_sqrt_hz=1e-6)
+    session, _ = simulate(quiet_gyro, SEED0)
+    base = cramer_rao_std(quiet_gyro, session, options)
+    crlb_h = np.asarray(base["h"])
+
+    used = moving_part(quiet_gyro, session, options)
+    grid = build_grid(used.t_gyro_s, used.gyro_rad_s, used.t_mag_s, 1)
+    t = used.t_mag_s[grid.mag_index.ravel()]
+    v = np.einsum("nji,j->ni", truth_attitude(quiet_gyro, t - quiet_gyro.mag_time_offset_s), field_i(quiet_gyro))
+    n, sigma = len(t), quiet_gyro.mag_noise_std
+    simple = sigma / math.sqrt(n)
+    regression = np.empty(3)
+    for a in range(3):
+        x = v[:, a:]
+        xbar = x.mean(axis=0)
+        sxx = np.atleast_2d(np.cov(x.T, bias=True))
+        regression[a] = sigma * math.sqrt((1.0 + xbar @ np.linalg.solve(sxx, xbar)) / n)
+
+    assert np.all(regression >= simple)
+    assert np.all(crlb_h >= regression * (1 - 1e-6)), (crlb_h, regression)
+    assert np.all(crlb_h <= 2.0 * regression), crlb_h / regression
+
+    doubled = dataclasses.replace(quiet_gyro, gyro_noise_density_deg_s_sqrt_hz=2e-6, mag_noise_std=2 * sigma)
+    crlb2 = cramer_rao_std(doubled, session, options)
+    for key in ("h", "K_g", "bias_deg_s", "misalignment_deg"):
+        assert np.asarray(crlb2[key]) == pytest.approx(2 * np.asarray(base[key]), rel=1e-6), key
+
+
+# --------------------------------------------------------------------------- failures
+
+
+def fake_solver(problem, fail: dict):
+    """A stand-in for the NLS: known estimates per seed, or the exception listed for that seed."""
+
+    def solve(session, options):
+        seed = session.metadata["seed"]
+        if seed in fail:
+            raise fail[seed]
+        k = seed - SEED0
+        return SimpleNamespace(
+            K_g=problem.K_g + 1e-4 * k * np.triu(np.ones((3, 3))), bias_rad_s=problem.gyro_bias_rad_s,
+            C_b_m=problem.C_b_m, R=problem.R, h=problem.hard_iron + 1e-3 * k, time_offset_s=0.0,
+            time_offset_estimated=False, solver={"method": "fake", "status": "ok", "iterations": 0, "seconds": 0.0},
+            std={"K_g": np.full((3, 3), 2e-4), "bias_deg_s": np.ones(3), "misalignment_deg": np.ones(3),
+                 "R": np.ones((3, 3)), "h": np.ones(3)},
+        )
+
+    return solve
+
+
+def test_failed_runs_are_counted_with_seed_and_message(problem, monkeypatch):
+    fail = {SEED0 + 1: SolverError("the solver did not converge (injected)"),
+            SEED0 + 3: ObservabilityError("the motion does not excite every gyro parameter (injected)")}
+    monkeypatch.setitem(mc.SOLVERS, "nls", fake_solver(problem, fail))
+    result = mc.run_montecarlo(problem, 5, jobs=1, seed0=SEED0)
+    nls = result["nls"]
+    assert result.failed_count == 2 and not result.all_succeeded
+    assert nls.succeeded == 3
+    assert [(o.seed, o.error_type, o.exit_code) for o in nls.failed] == [
+        (SEED0 + 1, "SolverError", 1), (SEED0 + 3, "ObservabilityError", 3)]
+    assert "injected" in nls.failed[0].error
+    # The table holds the 3 successes: k = 0, 2, 4, so K_g[0,0] = truth + 1e-4 k exactly.
+    row = nls.row("K_g[0,0]")
+    assert row.n == 3
+    assert row.mean == pytest.approx(problem.K_g[0, 0] + 2e-4, rel=1e-12)
+    assert row.std == pytest.approx(2e-4, rel=1e-9)  # std of (0, 2, 4) * 1e-4
+    assert row.reported_over_actual == pytest.approx(1.0, rel=1e-9)
+    assert "time_offset_s" not in [r.name for r in nls.rows]  # the stand-in does not estimate it
+    text = result.table()
+    assert "3 succeeded, 2 failed" in text
+    assert f"FAILED seed {SEED0 + 1}: SolverError (exit 1)" in text
+    assert f"FAILED seed {SEED0 + 3}: ObservabilityError (exit 3)" in text
+    failures = json.loads(result.to_json())["methods"]["nls"]["failures"]
+    assert [f["seed"] for f in failures] == [SEED0 + 1, SEED0 + 3]
+
+
+def test_methods_are_checked(monkeypatch):
+    assert mc.parse_methods("nls") == ["nls"]
+    with pytest.raises(InputError, match="unknown method"):
+        mc.parse_methods("lm")
+    with pytest.raises(InputError, match="twice"):
+        mc.parse_methods("nls,nls")
+    monkeypatch.setitem(sys.modules, "magyro.ekf", None)  # import magyro.ekf now raises ImportError
+    with pytest.raises(InputError, match="method ekf is not available yet"):
+        mc.parse_methods("nls,ekf")
+
+
+def test_paper_column_only_for_the_paper_problem(problem):
+    assert mc.matches_paper(load_problem("paper-table1"))
+    assert not mc.matches_paper(problem)  # 30 s, not the paper's 100 s
+    assert mc.vs_paper(1.0, 0.5, 2.0) == "yes"
+    assert mc.vs_paper(3.0, 1.0, 2.0) == "no (CRLB allows)"
+    assert mc.vs_paper(3.0, 2.5, 2.0) == "no (CRLB > paper)"
+    assert mc.vs_paper(3.0, 2.5, None) == ""
+
+
+# --------------------------------------------------------------------------- the command line
+
+
+def magyro(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "magyro.cli", *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd, timeout=300)
+
+
+def test_cli_two_processes_json_and_csv(tmp_path):
+    r = magyro("montecarlo", PROBLEM, "--runs", 2, "--jobs", 2, "--seed0", 7, "-o", "t.json", "--csv", "t.csv",
+               cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "run 2/2" in r.stderr
+    assert "method nls: 2 succeeded, 0 failed" in r.stdout
+    d = json.loads((tmp_path / "t.json").read_text())
+    assert d["schema"] == "magyro.montecarlo/1" and d["seeds"] == [7, 8] and d["jobs"] == 2
+    assert d["failed"] == 0 and d["all_succeeded"] is True
+    runs = d["methods"]["nls"]["runs"]
+    assert [run["seed"] for run in runs] == [7, 8] and all(run["ok"] for run in runs)
+    lines = (tmp_path / "t.csv").read_text().splitlines()
+    assert lines[0].split(",")[:4] == ["method", "parameter", "group", "unit"]
+    assert len(lines) == 1 + len(d["methods"]["nls"]["parameters"])
+
+
+def test_cli_exit_1_when_runs_fail_and_the_json_is_still_written(tmp_path):
+    """A session without motion cannot be solved: every run fails, each one is listed, exit 1."""
+    r = magyro("montecarlo", "static", "--runs", 2, "-o", "t.json", cwd=tmp_path)
+    assert r.returncode == 1, (r.stdout, r.stderr)
+    assert "Traceback" not in r.stderr
+    assert r.stderr.strip().splitlines()[-1].startswith("magyro: 2 of 2 runs failed")
+    d = json.loads((tmp_path / "t.json").read_text())
+    assert d["failed"] == 2 and d["all_succeeded"] is False
+    assert [f["seed"] for f in d["methods"]["nls"]["failures"]] == [0, 1]
+    assert all(f["error"] for f in d["methods"]["nls"]["failures"])
+
+
+def test_cli_unknown_method_is_unusable_input(tmp_path):
+    r = magyro("montecarlo", PROBLEM, "--runs", 1, "--method", "lm", cwd=tmp_path)
+    assert r.returncode == 2
+    assert r.stderr.strip().startswith("magyro: unknown method")
