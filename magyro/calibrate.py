@@ -232,13 +232,25 @@ class Reduced:
     Dinv_Hpt: np.ndarray      # D^-1 H_pt
 
 
+def flush_negligible(X: np.ndarray, relative: float = 1e-30) -> np.ndarray:
+    """X with entries below `relative` of its largest set to zero, in C order.
+
+    Far from where the calibration couples to the attitudes the solution decays
+    to ~1e-300; products of such numbers are subnormal and made a 24 x 30000 by
+    30000 x 24 product take 0.95 s instead of 2 ms. They cannot matter to a sum.
+    """
+    X = np.ascontiguousarray(X)
+    X[np.abs(X) < relative * np.max(np.abs(X))] = 0.0
+    return X
+
+
 def reduce_hessian(H_triu, G: int) -> Reduced:
     """Eliminate the attitudes (after the first G unknowns) from triu(J^T J) by a banded solve."""
     H_tt = H_triu[:G, :G].toarray()
     H_tt = H_tt + np.triu(H_tt, 1).T
     H_tp = H_triu[:G, G:].toarray()
     ab = banded_upper(H_triu[G:, G:])
-    Dinv_Hpt = solveh_banded(ab, H_tp.T, check_finite=False)
+    Dinv_Hpt = flush_negligible(solveh_banded(ab, H_tp.T, check_finite=False))
     return Reduced(H_tt - H_tp @ Dinv_Hpt, H_tp, ab, Dinv_Hpt)
 
 
@@ -246,7 +258,7 @@ def gauss_newton_decrement(red: Reduced, grad) -> float:
     """g^T H^-1 g: how much the objective (chi^2 units) a further Gauss-Newton step would still remove."""
     G = red.H_tp.shape[0]
     g_t, g_p = grad[:G], grad[G:]
-    Dinv_gp = solveh_banded(red.D_banded, g_p, check_finite=False)
+    Dinv_gp = flush_negligible(solveh_banded(red.D_banded, g_p, check_finite=False))
     x_t = np.linalg.solve(red.information, g_t - red.H_tp @ Dinv_gp)
     x_p = Dinv_gp - red.Dinv_Hpt @ x_t
     return float(g_t @ x_t + g_p @ x_p)

@@ -38,8 +38,12 @@ def linear_gyro_estimate(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s: float
     dm, int_M = windowed_increments(t_gyro_s, gyro_rad_s, np.asarray(t_mag_s) - time_offset_s, field_m, window_s)
     A = int_M.reshape(-1, 12)
     b = dm.reshape(-1)
-    theta, *_ , sv = np.linalg.lstsq(A, b, rcond=None)
-    rank = int(np.sum(sv > sv[0] * 1e-9)) if sv.size else 0
+    # normal equations (12 x 12): a tall lstsq cost 40 ms a call in the lag search
+    N, rhs = A.T @ A, A.T @ b
+    lam, V = np.linalg.eigh(N)
+    keep = lam > lam[-1] * 1e-18  # singular values above 1e-9 of the largest
+    theta = V[:, keep] @ ((V[:, keep].T @ rhs) / lam[keep])  # minimum-norm when rank deficient
+    rank = int(np.sum(keep))
     K = theta[:9].reshape(3, 3, order="F")
     rms = float(np.sqrt(np.mean((A @ theta - b) ** 2)))
     return LinearGyroEstimate(K=K, eps=theta[9:].copy(), rank=rank, windows=len(dm), time_offset_s=time_offset_s, residual=rms)

@@ -259,7 +259,8 @@ class JointProblem:
             "interval_gauss_newton", [th, pk, pk1, g, d],
             [JthT, ca.mtimes(JthT, Jk), ca.mtimes(JthT, Jk1), ca.mtimes(Jk.T, Jk), ca.mtimes(Jk1.T, Jk1), ca.mtimes(Jk.T, Jk1)],
         )
-        if compiled:  # the residual kernel stays symbolic: nlpsol differentiates f at set-up
+        if compiled:
+            self.residual_kernel = compile_kernel(self.residual_kernel)
             self.gradient_kernel = compile_kernel(self.gradient_kernel)
             self.gn_kernel = compile_kernel(self.gn_kernel)
         S, h, K, eps, m_i, tau, _, _ = unpack_globals(th, g)
@@ -350,6 +351,7 @@ class JointProblem:
                 "hess_lag": self._hess_lag,
                 "grad_f": self._grad_f,
                 "calc_lam_p": False,
+                "no_nlp_grad": True,  # grad_f and hess_lag are given: nothing needs to differentiate f
                 "calc_lam_x": False,
                 "print_time": False,
                 "ipopt.print_level": 0,
