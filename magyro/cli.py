@@ -7,6 +7,10 @@ from __future__ import annotations
 
 import os
 import sys
+
+# one BLAS thread: the products here are small, and on a busy 2-core machine OpenBLAS's
+# threads made a 12-column least squares 100x slower (set before numpy is imported)
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 from pathlib import Path
 from typing import List, Optional
 

@@ -35,21 +35,34 @@ def find_compiler() -> str | None:
     return os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
 
 
-def compile_kernel(fn: ca.Function) -> ca.Function:
-    """`fn` as a compiled external function (cached), or `fn` itself when compiling is not possible."""
+def compile_kernel(fn: ca.Function, key: str) -> ca.Function:
+    """`fn` as a compiled external function (cached), or `fn` itself when compiling is not possible.
+
+    `key` must determine the kernel completely (its shape parameters); the
+    cache file is named by it, by the source of the modules that build kernels
+    and by the CasADi version, so C code is generated only on a cache miss.
+    """
     if not jit_enabled():
         return fn
+    lib = cache_dir() / f"{fn.name()}_{cache_digest(key)}.so"
+    if not lib.exists() and not build_library(generate_c(fn), lib):
+        return fn
+    return ca.external(fn.name(), str(lib))
+
+
+def cache_digest(key: str) -> str:
+    sources = b"".join(Path(__file__).with_name(m).read_bytes() for m in ("problem.py", "compiled.py"))
+    text = key.encode() + sources + " ".join(COMPILE_FLAGS).encode() + ca.__version__.encode()
+    return hashlib.sha256(text).hexdigest()[:20]
+
+
+def generate_c(fn: ca.Function) -> bytes:
     with tempfile.TemporaryDirectory() as tmp:
         c_name = f"{fn.name()}.c"
         cg = ca.CodeGenerator(c_name, {"with_header": False})
         cg.add(fn)
         cg.generate(tmp + os.sep)
-        source = Path(tmp, c_name).read_bytes()
-    digest = hashlib.sha256(source + " ".join(COMPILE_FLAGS).encode() + ca.__version__.encode()).hexdigest()[:20]
-    lib = cache_dir() / f"{fn.name()}_{digest}.so"
-    if not lib.exists() and not build_library(source, lib):
-        return fn
-    return ca.external(fn.name(), str(lib))
+        return Path(tmp, c_name).read_bytes()
 
 
 def build_library(source: bytes, lib: Path) -> bool:

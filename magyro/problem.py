@@ -260,9 +260,10 @@ class JointProblem:
             [JthT, ca.mtimes(JthT, Jk), ca.mtimes(JthT, Jk1), ca.mtimes(Jk.T, Jk), ca.mtimes(Jk1.T, Jk1), ca.mtimes(Jk.T, Jk1)],
         )
         if compiled:
-            self.residual_kernel = compile_kernel(self.residual_kernel)
-            self.gradient_kernel = compile_kernel(self.gradient_kernel)
-            self.gn_kernel = compile_kernel(self.gn_kernel)
+            key = f"stride={s} substeps={L} theta={self.n_theta} huber={huber!r}"
+            self.residual_kernel = compile_kernel(self.residual_kernel, key)
+            self.gradient_kernel = compile_kernel(self.gradient_kernel, key)
+            self.gn_kernel = compile_kernel(self.gn_kernel, key)
         S, h, K, eps, m_i, tau, _, _ = unpack_globals(th, g)
         self.physical_function = ca.Function(
             "physical", [th, g], [S, h, K, eps, m_i, tau], ["theta", "g"], ["S", "h", "K", "eps", "m_i", "tau"]
