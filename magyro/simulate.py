@@ -49,7 +49,12 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
 TRUTH_SCHEMA = "magyro.truth/1"
-PROBLEMS_DIR = Path(__file__).resolve().parent.parent / "problems"
+# the problems shipped with magyro: installed as package data (magyro/problems), or the
+# top-level problems/ of a source checkout
+PROBLEMS_DIR = next(
+    (d for d in (Path(__file__).parent / "problems", Path(__file__).parent.parent / "problems") if d.is_dir()),
+    Path(__file__).parent.parent / "problems",
+)
 MOTION_KINDS = ("euler", "sequential", "static")
 AXES = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
 
