@@ -18,8 +18,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
-from scipy.linalg import solveh_banded
 
 from . import magfit, noise, rests, so3
 from .errors import InputError, ObservabilityError, SolverError
@@ -214,62 +214,43 @@ def linearise(prep: Prepared, grid: Grid, options: Options) -> Linearisation:
     return Linearisation(S0, prep.fit.h, lin0.K, lin0.eps, m0, C, float(np.mean(np.diag(S0))), lin0.time_offset_s)
 
 
-def banded_upper(H_pp_triu) -> np.ndarray:
-    """Upper banded storage (bandwidth 5) of the block-tridiagonal attitude block."""
-    coo = H_pp_triu.tocoo()
-    n = H_pp_triu.shape[0]
-    ab = np.zeros((6, n))
-    ab[5 + coo.row - coo.col, coo.col] = coo.data
-    return ab
-
-
 @dataclass(frozen=True)
 class Reduced:
-    """J^T J with the trajectory eliminated: the marginal information of the 23 calibration corrections."""
+    """J^T J with the trajectory eliminated: the marginal information of the calibration corrections."""
 
     information: np.ndarray   # Schur complement H_tt - H_tp D^-1 H_pt
     H_tp: np.ndarray
-    D_banded: np.ndarray      # attitude block D, upper banded storage
+    D: ca.DM                  # the attitude block (sparse, block tridiagonal), full symmetric
+    D_solver: ca.Linsol       # its sparse LDL factorisation
     Dinv_Hpt: np.ndarray      # D^-1 H_pt
 
-
-def flush_negligible(X: np.ndarray, relative: float = 1e-30) -> np.ndarray:
-    """X with entries below `relative` of its largest set to zero, in C order.
-
-    Far from where the calibration couples to the attitudes the solution decays
-    to ~1e-300; products of such numbers are subnormal and made a 24 x 30000 by
-    30000 x 24 product take 0.95 s instead of 2 ms. They cannot matter to a sum.
-    """
-    X = np.ascontiguousarray(X)
-    X[np.abs(X) < relative * np.max(np.abs(X))] = 0.0
-    return X
+    def solve_D(self, b: np.ndarray) -> np.ndarray:
+        return np.array(self.D_solver.solve(self.D, ca.DM(b))).reshape(np.shape(b))
 
 
-def reduce_hessian(H_triu, G: int) -> Reduced:
-    """Eliminate the attitudes (after the first G unknowns) from triu(J^T J) by a banded solve."""
-    H_tt = H_triu[:G, :G].toarray()
+def reduce_hessian(H_triu: ca.DM, G: int) -> Reduced:
+    """Eliminate the attitudes (after the first G unknowns) from triu(J^T J) by a sparse LDL
+    of the block-tridiagonal attitude block: no dense N x N matrix is ever formed."""
+    H_tt = np.array(ca.densify(H_triu[:G, :G]))
     H_tt = H_tt + np.triu(H_tt, 1).T
-    H_tp = H_triu[:G, G:].toarray()
-    ab = banded_upper(H_triu[G:, G:])
-    Dinv_Hpt = flush_negligible(solveh_banded(ab, H_tp.T, check_finite=False))
-    return Reduced(H_tt - H_tp @ Dinv_Hpt, H_tp, ab, Dinv_Hpt)
+    H_tp = np.array(ca.densify(H_triu[:G, G:]))
+    D_triu = H_triu[G:, G:]
+    D = D_triu + ca.triu(D_triu, False).T
+    solver = ca.Linsol("attitude_block", "ldl", D.sparsity())
+    solver.sfact(D)
+    solver.nfact(D)
+    Dinv_Hpt = np.array(solver.solve(D, ca.DM(H_tp.T)))
+    return Reduced(H_tt - H_tp @ Dinv_Hpt, H_tp, D, solver, Dinv_Hpt)
 
 
 def gauss_newton_decrement(red: Reduced, grad) -> float:
     """g^T H^-1 g: how much the objective (chi^2 units) a further Gauss-Newton step would still remove."""
     G = red.H_tp.shape[0]
     g_t, g_p = grad[:G], grad[G:]
-    Dinv_gp = flush_negligible(solveh_banded(red.D_banded, g_p, check_finite=False))
+    Dinv_gp = red.solve_D(g_p)
     x_t = np.linalg.solve(red.information, g_t - red.H_tp @ Dinv_gp)
     x_p = Dinv_gp - red.Dinv_Hpt @ x_t
     return float(g_t @ x_t + g_p @ x_p)
-
-
-def to_scipy(dm):
-    import scipy.sparse as sps
-
-    sp = dm.sparsity()
-    return sps.csc_matrix((np.array(dm.nonzeros()), np.array(sp.row()), np.array(sp.colind())), shape=dm.shape)
 
 
 def propagate(problem: JointProblem, theta, g, cov_theta, C_ref) -> np.ndarray:
@@ -321,7 +302,7 @@ def predicted_std(prep: Prepared, options: Options | None = None) -> dict:
 def information_covariance(problem: JointProblem, lin: Linearisation, p) -> np.ndarray:
     """Covariance of the reported vector (result.REPORTED layout) from the Gauss-Newton information
     at the linearisation point; all inf where the information is singular (a direction the data do not see)."""
-    info = reduce_hessian(to_scipy(problem.hessian_function(np.zeros(problem.n_x), p)), problem.n_theta).information
+    info = reduce_hessian(problem.hessian_function(np.zeros(problem.n_x), p), problem.n_theta).information
     lam = np.linalg.eigvalsh(info)
     if lam[0] <= lam[-1] * 1e-14:
         return np.full((N_REPORTED, N_REPORTED), np.inf)
@@ -398,7 +379,7 @@ def calibrate(session: Session, options: Options | None = None) -> Calibration:
     prep = prepare(session, options)
     grid, lin, problem = build_problem(prep, options)
     sol = solve_passes(problem, prep, lin, options)
-    reduced = reduce_hessian(to_scipy(problem.hessian_function(sol.x, sol.p)), problem.n_theta)
+    reduced = reduce_hessian(problem.hessian_function(sol.x, sol.p), problem.n_theta)
     decrement = gauss_newton_decrement(reduced, np.array(problem.gradient_function(sol.x, sol.p)).ravel())
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
         raise SolverError(

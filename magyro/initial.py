@@ -50,7 +50,7 @@ def linear_gyro_estimate(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s: float
 
 
 def with_time_offset(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s: float = DEFAULT_WINDOW_S,
-                     tolerance_s: float = 2e-4) -> LinearGyroEstimate:
+                     tolerance_s: float = 5e-4) -> LinearGyroEstimate:
     """Eq. (13) at the magnetometer lag that fits it best (golden-section search over +/-0.1 s).
 
     A lag of 10 ms at 7 rad/s turns the field 4 deg out of step with the gyro and biases

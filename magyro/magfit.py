@@ -81,9 +81,12 @@ def fit_ellipsoid(y_mag: np.ndarray, noise_std: float = 0.0) -> EllipsoidFit:
     centre = y.mean(axis=0)
     scale = np.sqrt(np.mean(np.sum((y - centre) ** 2, axis=1)))
     u = (y - centre) / scale
-    _, s, Vt = np.linalg.svd(quadric_design_matrix(u), full_matrices=False)
-    uniqueness = float(s[-2] / max(s[-1], 1e-300))
-    A, b, c = quadric_from_vector(Vt[-1])
+    # singular values and vectors of the (N x 10) design from its 10 x 10 normal matrix: the
+    # data are centred and scaled, so squaring the condition costs nothing that matters here
+    lam, V = np.linalg.eigh(quadric_design_matrix(u).T @ quadric_design_matrix(u))
+    lam = np.maximum(lam, 0.0)
+    uniqueness = float(np.sqrt(lam[1] / max(lam[0], 1e-300)))
+    A, b, c = quadric_from_vector(V[:, 0])
     try:
         R_u, h_u = ellipsoid_shape(A, b, c)
     except InputError:
