@@ -201,9 +201,9 @@ def default_stride(session: Session) -> int:
     return max(1, int(round(session.mag_rate_hz / NODE_RATE_HZ)))
 
 
-def linearise(prep: Prepared, grid: Grid, options: Options) -> Linearisation:
+def linearise(prep: Prepared, grid: Grid, options: Options, search_lag: bool = True) -> Linearisation:
     s = prep.session
-    if options.estimate_time_offset:
+    if options.estimate_time_offset and search_lag:
         lin0 = with_time_offset(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, prep.field_m)
     else:
         lin0 = linear_gyro_estimate(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, prep.field_m, time_offset_s=options.time_offset_s)
@@ -269,10 +269,10 @@ def propagate(problem: JointProblem, theta, g, cov_theta, C_ref) -> np.ndarray:
     return J @ cov_theta @ J.T
 
 
-def build_problem(prep: Prepared, options: Options) -> tuple[Grid, Linearisation, JointProblem]:
+def build_problem(prep: Prepared, options: Options, search_lag: bool = True) -> tuple[Grid, Linearisation, JointProblem]:
     s = prep.session
     grid = build_grid(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, options.stride or default_stride(s))
-    lin = linearise(prep, grid, options)
+    lin = linearise(prep, grid, options, search_lag)
     huber = options.huber_threshold if options.loss == "huber" else None
     if options.loss not in ("l2", "huber"):
         raise InputError(f"unknown loss '{options.loss}'; use l2 or huber")
@@ -291,10 +291,12 @@ def predicted_std(prep: Prepared, options: Options | None = None) -> dict:
     The Gauss-Newton (Fisher) information of the joint problem at the initial
     estimate, with the session's noise levels, trajectory marginalised out and
     propagated like the solved std. Entries are inf where the information is
-    singular (unobservable).
+    singular (unobservable). The linearisation point is the plain eq. (13)
+    estimate: the lag search that the solve needs to converge changes a
+    prediction by no more than the few percent it moves K.
     """
     options = options or Options()
-    grid, lin, problem = build_problem(prep, options)
+    grid, lin, problem = build_problem(prep, options, search_lag=False)
     p = problem_parameters(problem, prep, lin, prep.sigma_mag, lin.time_offset_s)
     return information_std(problem, lin, p)
 

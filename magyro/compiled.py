@@ -44,10 +44,22 @@ def compile_kernel(fn: ca.Function, key: str) -> ca.Function:
     """
     if not jit_enabled():
         return fn
-    lib = cache_dir() / f"{fn.name()}_{cache_digest(key)}.so"
+    lib = library_path(fn.name(), key)
     if not lib.exists() and not build_library(generate_c(fn), lib):
         return fn
     return ca.external(fn.name(), str(lib))
+
+
+def library_path(name: str, key: str) -> Path:
+    return cache_dir() / f"{name}_{cache_digest(key)}.so"
+
+
+def load_cached_kernel(name: str, key: str) -> ca.Function | None:
+    """The compiled kernel `name` for `key` if it is in the cache (and compiling is on), else None."""
+    if not jit_enabled():
+        return None
+    lib = library_path(name, key)
+    return ca.external(name, str(lib)) if lib.exists() else None
 
 
 def cache_digest(key: str) -> str:

@@ -170,19 +170,21 @@ def _numeric_columns(arrow_table: pa.Table) -> ColumnTable | None:
     for name, column in zip(arrow_table.column_names, arrow_table.columns):
         if not (pa.types.is_floating(column.type) or pa.types.is_integer(column.type)):
             return None
-        columns[str(name).strip()] = _float64_values(column.cast(pa.float64()).combine_chunks())
+        columns[str(name).strip()] = _float64_values(column.combine_chunks())
     return ColumnTable(columns)
 
 
 def _float64_values(array: pa.Array) -> np.ndarray:
-    """A float64 Arrow array as numpy, nulls as NaN, straight from its buffers.
+    """An int or float Arrow array as float64 numpy, nulls as NaN, straight from its buffers.
 
-    (Array.to_numpy with nulls, ChunkedArray.to_numpy and fill_null all import
-    pandas: 0.3 s of a 2 s run.)
+    (Array.to_numpy with nulls, ChunkedArray.to_numpy and fill_null import
+    pandas, 0.3 s; Array.cast imports pyarrow.compute, 0.09 s.)
     """
     n, offset = len(array), array.offset
     validity, data = array.buffers()[:2]
-    values = np.frombuffer(data, dtype=np.float64, count=offset + n)[offset:].copy()
+    dtype = np.dtype(f"{'f' if pa.types.is_floating(array.type) else 'i' if pa.types.is_signed_integer(array.type) else 'u'}"
+                     f"{array.type.bit_width // 8}")
+    values = np.frombuffer(data, dtype=dtype, count=offset + n)[offset:].astype(np.float64)
     if array.null_count:
         bits = np.unpackbits(np.frombuffer(validity, dtype=np.uint8), bitorder="little")[offset: offset + n]
         values[bits == 0] = np.nan

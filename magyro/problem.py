@@ -39,7 +39,7 @@ import casadi as ca
 import numpy as np
 
 from . import so3
-from .compiled import compile_kernel
+from .compiled import compile_kernel, load_cached_kernel
 
 N_GLOBAL = 23          # calibration corrections without the time offset; 24 with it
 GLOBAL_SLICES = {"U": slice(0, 6), "dh": slice(6, 9), "dK": slice(9, 18), "deps": slice(18, 21), "dm": slice(21, 23), "dtau": slice(23, 24)}
@@ -227,6 +227,32 @@ def tangent_basis(m0: np.ndarray) -> np.ndarray:
 
 
 # -------------------------------------------------------------------- the problem
+KERNEL_NAMES = ("interval_residuals", "interval_gradient", "interval_gauss_newton")
+
+
+def interval_kernels(n_theta: int, n_glob_p: int, n_data: int, stride: int, L: int, huber: float | None):
+    """The three per-interval SX kernels: residuals; sum of squares and its gradient; Gauss-Newton blocks."""
+    th = ca.SX.sym("theta", n_theta)
+    pk = ca.SX.sym("phi_k", 3)
+    pk1 = ca.SX.sym("phi_k1", 3)
+    g = ca.SX.sym("g", n_glob_p)
+    d = ca.SX.sym("d", n_data)
+    r = interval_residuals(th, pk, pk1, g, d, stride, L, huber)
+    JthT = ca.jacobian(r, th).T
+    Jk = ca.jacobian(r, pk)
+    Jk1 = ca.jacobian(r, pk1)
+    ssq = ca.sumsqr(r)
+    args = [th, pk, pk1, g, d]
+    return [
+        ca.Function(KERNEL_NAMES[0], args, [r]),
+        ca.Function(KERNEL_NAMES[1], args,
+                    [ssq, 0.5 * ca.gradient(ssq, th), 0.5 * ca.gradient(ssq, pk), 0.5 * ca.gradient(ssq, pk1)]),
+        ca.Function(KERNEL_NAMES[2], args,
+                    [JthT, ca.mtimes(JthT, Jk), ca.mtimes(JthT, Jk1), ca.mtimes(Jk.T, Jk), ca.mtimes(Jk1.T, Jk1),
+                     ca.mtimes(Jk.T, Jk1)]),
+    ]
+
+
 class JointProblem:
     """The least squares on one grid shape; data and linearisation enter as parameters."""
 
@@ -240,30 +266,17 @@ class JointProblem:
         self.n_x = self.n_theta + 3 * self.n_int
         self.n_res_per_interval = 3 * s + 3
 
+        key = f"stride={s} substeps={L} theta={self.n_theta} huber={huber!r}"
+        cached = [load_cached_kernel(name, key) for name in KERNEL_NAMES] if compiled else [None]
+        if all(k is not None for k in cached):  # compiled before: no symbolic build needed
+            self.residual_kernel, self.gradient_kernel, self.gn_kernel = cached
+        else:
+            kernels = interval_kernels(self.n_theta, self.n_glob_p, self.n_data, s, L, huber)
+            if compiled:
+                kernels = [compile_kernel(k, key) for k in kernels]
+            self.residual_kernel, self.gradient_kernel, self.gn_kernel = kernels
         th = ca.SX.sym("theta", self.n_theta)
-        pk = ca.SX.sym("phi_k", 3)
-        pk1 = ca.SX.sym("phi_k1", 3)
         g = ca.SX.sym("g", self.n_glob_p)
-        d = ca.SX.sym("d", self.n_data)
-        r = interval_residuals(th, pk, pk1, g, d, s, L, huber)
-        JthT = ca.jacobian(r, th).T
-        Jk = ca.jacobian(r, pk)
-        Jk1 = ca.jacobian(r, pk1)
-        self.residual_kernel = ca.Function("interval_residuals", [th, pk, pk1, g, d], [r])
-        ssq = ca.sumsqr(r)
-        self.gradient_kernel = ca.Function(
-            "interval_gradient", [th, pk, pk1, g, d],
-            [ssq, 0.5 * ca.gradient(ssq, th), 0.5 * ca.gradient(ssq, pk), 0.5 * ca.gradient(ssq, pk1)],
-        )
-        self.gn_kernel = ca.Function(
-            "interval_gauss_newton", [th, pk, pk1, g, d],
-            [JthT, ca.mtimes(JthT, Jk), ca.mtimes(JthT, Jk1), ca.mtimes(Jk.T, Jk), ca.mtimes(Jk1.T, Jk1), ca.mtimes(Jk.T, Jk1)],
-        )
-        if compiled:
-            key = f"stride={s} substeps={L} theta={self.n_theta} huber={huber!r}"
-            self.residual_kernel = compile_kernel(self.residual_kernel, key)
-            self.gradient_kernel = compile_kernel(self.gradient_kernel, key)
-            self.gn_kernel = compile_kernel(self.gn_kernel, key)
         S, h, K, eps, m_i, tau, _, _ = unpack_globals(th, g)
         self.physical_function = ca.Function(
             "physical", [th, g], [S, h, K, eps, m_i, tau], ["theta", "g"], ["S", "h", "K", "eps", "m_i", "tau"]
