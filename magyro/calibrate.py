@@ -147,16 +147,24 @@ def check_gyro_unit(session: Session, field_m: np.ndarray) -> None:
         )
 
 
-def prepare(session: Session, options: Options) -> Prepared:
-    """Steps 1-3: noise, rests, ellipsoid, observability. Raises ObservabilityError unless forced."""
+def moving_session(session: Session, options: Options) -> tuple[Session, NoiseLevels, rests.Rests]:
+    """(the session as the calibration sees it, noise levels, rests): rests found, noise levels
+    from them, and the session trimmed to its moving span when Options.trim_rests. A session
+    that is one long rest stays whole: the gate then calls it static."""
     found = rests.find_rests(session)
     levels = noise_levels(session, options, found)
-    sigma_mag, density = levels.mag_std, levels.gyro_density_rad_s_sqrt_hz
-    gyro_std, mag_sample = levels.gyro_sample_std_rad_s, levels.mag_sample_std
     if options.trim_rests and found.segments_s:
         moving = rests.trimmed(session, *rests.moving_span(session, found))
         if min(len(moving.t_mag_s), len(moving.t_gyro_s)) >= MIN_MOVING_SAMPLES:
-            session = moving  # (a session that is one long rest stays whole: the gate calls it static)
+            session = moving
+    return session, levels, found
+
+
+def prepare(session: Session, options: Options) -> Prepared:
+    """Steps 1-3: noise, rests, ellipsoid, observability. Raises ObservabilityError unless forced."""
+    session, levels, found = moving_session(session, options)
+    sigma_mag, density = levels.mag_std, levels.gyro_density_rad_s_sqrt_hz
+    gyro_std, mag_sample = levels.gyro_sample_std_rad_s, levels.mag_sample_std
     try:
         fit = magfit.fit_ellipsoid(session.mag, mag_sample)
     except magfit.DegenerateCloud as cloud:

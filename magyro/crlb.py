@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import rests
-from .calibrate import Options, default_stride, information_covariance
+from .calibrate import Options, default_stride, information_covariance, moving_session
 from .result import std_from_covariance
 from .problem import JointProblem, Linearisation, build_grid
 from .session import Session
@@ -29,11 +28,8 @@ def truth_linearisation(problem: Problem, t_node_s: np.ndarray) -> Linearisation
 
 
 def moving_part(problem: Problem, session: Session, options: Options) -> Session:
-    """The session as the solver sees it (rests at both ends trimmed)."""
-    if not options.trim_rests:
-        return session
-    found = rests.find_rests(session)
-    return rests.trimmed(session, *rests.moving_span(session, found)) if found.segments_s else session
+    """The session as the solver sees it (rests at both ends trimmed, as calibrate does)."""
+    return moving_session(session, options)[0]
 
 
 def cramer_rao_std(problem: Problem, session: Session, options: Options | None = None) -> dict:

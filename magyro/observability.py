@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .excitation import PARAMETER_NAMES, information_integral, trapezoid_weights
+from .excitation import information_integral, trapezoid_weights
 
 FLOOR_FACTOR = 10.0
 NUMERICAL_RTOL = 1e-12

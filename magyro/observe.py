@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import magfit, rests
-from .calibrate import MIN_MOVING_SAMPLES, Options, Prepared, noise_levels, predicted_std, prepare
+from . import magfit
+from .calibrate import Options, Prepared, moving_session, predicted_std, prepare
 from .errors import InputError, MagyroError, ObservabilityError
 from .excitation import PARAMETER_NAMES, cumulative_information, trapezoid_weights
 from .observability import FLOOR_FACTOR, ObservabilityAnalysis, cumulative_noise_matrix, directional_rank
@@ -288,20 +288,9 @@ def observe(session: Session, options: Options | None = None, targets: Targets |
 
 
 def gate_inputs(session: Session, options: Options):
-    """(session as the gate analyses it, per-sample noise levels, rests).
-
-    prepare() trims the rests at both ends (Options.trim_rests) and weighs the rank by
-    the per-sample noise stds; `Prepared` does not carry them, so they are made here the
-    same way, for the cumulative integral to follow the gate exactly. A session that is
-    one long rest (the device never moved) is analysed whole: trimming would leave nothing.
-    """
-    found = rests.find_rests(session)
-    levels = noise_levels(session, options, found)
-    if options.trim_rests and found.segments_s:
-        moving = rests.trimmed(session, *rests.moving_span(session, found))
-        if min(len(moving.t_mag_s), len(moving.t_gyro_s)) >= MIN_MOVING_SAMPLES:
-            session = moving
-    return session, levels, found
+    """(session as the gate analyses it, per-sample noise levels, rests), exactly as prepare() makes them,
+    for the cumulative integral to follow the gate."""
+    return moving_session(session, options)
 
 
 def timeline(session: Session, field_m, gyro_sample_std: float, mag_std_unit_field: float,

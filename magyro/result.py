@@ -119,7 +119,7 @@ class Calibration:
         """A short, truth-free human summary: estimate +/- one sigma (like the paper's Tables I/II)."""
         s = self.std
         lines = []
-        lines.append(f"gyro K_g (scale on diagonal, non-orthogonality above), +/- 1 sigma")
+        lines.append("gyro K_g (scale on diagonal, non-orthogonality above), +/- 1 sigma")
         for i in range(3):
             cells = []
             for j in range(3):
