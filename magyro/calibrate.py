@@ -400,8 +400,8 @@ def calibrate(session: Session, options: Options | None = None) -> Calibration:
     return assemble(problem, prep, grid, sol, reduced, options, time.perf_counter() - t_start)
 
 
-def residual_summary(problem: JointProblem, x, p) -> dict:
-    r = residual_matrix(problem, x, p)
+def residual_summary(problem: JointProblem, r: np.ndarray) -> dict:
+    """Fit statistics of the whitened residual matrix r (one row per interval)."""
     n_res = r.size
     dof = n_res - problem.n_x
     return {
@@ -419,9 +419,9 @@ def runs_of_true(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
 
 
-def suspect_segments(problem: JointProblem, grid: Grid, x, p) -> list[dict]:
+def suspect_segments(grid: Grid, residuals: np.ndarray) -> list[dict]:
     """Windows where the magnetometer fits far worse than typical (spikes, iron or a magnet near the path)."""
-    r = residual_matrix(problem, x, p)[:, :-3]
+    r = residuals[:, :-3]
     t = grid.t_node_s[:-1]
     window = np.floor((t - t[0]) / SUSPECT_WINDOW_S).astype(int)
     n_w = window.max() + 1
@@ -501,13 +501,14 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
     S, h, K, eps, m_i, tau = (np.array(v) for v in problem.physical_function(theta, g))
     h, eps, m_i, tau = h.ravel(), eps.ravel(), m_i.ravel(), float(tau.item())
     C, Kg = qr_split(K)
-    fit = residual_summary(problem, sol.x, sol.p)
+    residuals = residual_matrix(problem, sol.x, sol.p)
+    fit = residual_summary(problem, residuals)
     # No a-posteriori variance-factor scaling: the noise levels are already calibrated (given, from
     # rests with their correlation, or re-weighted from the residuals' effective scale); the plain
     # factor counts correlated samples as independent and would undo that. It is reported in `fit`.
     cov_theta = np.linalg.inv(reduced.information)
     std = std_from_covariance(propagate(problem, theta, g, cov_theta, C))
-    segments = suspect_segments(problem, grid, sol.x, sol.p)
+    segments = suspect_segments(grid, residuals)
     rest = rest_check(prep.rests, Kg, C.T @ eps)
     fit["suspect_segments"] = segments
     fit["field_change"] = field_magnitude_change(prep.session, np.linalg.inv(S), h)

@@ -312,10 +312,10 @@ def _canonical_key(unit: str) -> str:
 
 
 def _gyro_unit(path: Path, unit: str) -> str:
-    key = _canonical_key(unit)
-    if key not in io.GYRO_UNIT_ALIASES:
-        raise InputError(f"{path}: unknown gyro unit {unit!r}; use rad/s or deg/s")
-    return io.GYRO_UNIT_ALIASES[key]
+    try:
+        return io.canonical_gyro_unit(unit, "--gyro-unit")
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}") from None
 
 
 def _mag_unit(path: Path, unit: str) -> str:

@@ -218,9 +218,10 @@ def _read_csv(path: Path):
     return table
 
 
-def one_line(exc: Exception) -> str:
+def one_line(exc: BaseException, limit: int | None = 200) -> str:
+    """An exception's message on one line (cut to `limit` characters; None keeps it whole)."""
     text = " ".join(str(exc).split()) or type(exc).__name__
-    return text[:200]
+    return text if limit is None else text[:limit]
 
 
 def _check_columns(table) -> None:
@@ -358,13 +359,13 @@ def _check_sample_count(sensor: str, group: tuple, n_samples: int) -> None:
 def _gyro_unit(argument: str | None, metadata: dict) -> str:
     """The canonical gyro unit ("rad/s" or "deg/s") from argument > metadata > default."""
     if argument is not None:
-        return _canonical_gyro_unit(argument, "--gyro-unit")
+        return canonical_gyro_unit(argument, "--gyro-unit")
     if "gyro_unit" in metadata:
-        return _canonical_gyro_unit(metadata["gyro_unit"], "the file's gyro_unit metadata")
+        return canonical_gyro_unit(metadata["gyro_unit"], "the file's gyro_unit metadata")
     return DEFAULT_GYRO_UNIT
 
 
-def _canonical_gyro_unit(unit: str, origin: str) -> str:
+def canonical_gyro_unit(unit: str, origin: str) -> str:
     key = "".join(str(unit).split()).lower()
     if key not in GYRO_UNIT_ALIASES:
         raise InputError(f"unknown gyro unit {unit!r} (from {origin}); use rad/s or deg/s")

@@ -61,6 +61,7 @@ import numpy as np
 
 from . import __version__, so3
 from .errors import InputError
+from .io import one_line
 from .result import UPPER, misalignment_vector
 from .simulate import Problem, simulate
 
@@ -218,7 +219,7 @@ def _crlb_task(problem: Problem, seed: int, options) -> dict:
         values.update({f"euler_deg[{i}]": float(v) for i, v in enumerate(euler_crlb_deg(problem, session, options))})
         return {"seed": seed, "values": values, "error": None, "seconds": time.perf_counter() - t0}
     except Exception as exc:  # the table is still useful without a CRLB
-        return {"seed": seed, "values": {}, "error": _one_line(exc), "seconds": time.perf_counter() - t0}
+        return {"seed": seed, "values": {}, "error": one_line(exc, limit=None), "seconds": time.perf_counter() - t0}
 
 
 # --------------------------------------------------------------------------- one run
@@ -290,12 +291,8 @@ class Outcome:
         return d
 
 
-def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split()) or type(exc).__name__
-
-
 def _failure(seed: int, method: str, exc: BaseException, seconds: float) -> Outcome:
-    return Outcome(seed, method, False, seconds, error=_one_line(exc), error_type=type(exc).__name__,
+    return Outcome(seed, method, False, seconds, error=one_line(exc, limit=None), error_type=type(exc).__name__,
                    exit_code=int(getattr(exc, "exit_code", 1)))
 
 
@@ -740,7 +737,7 @@ def run_montecarlo(problem: Problem, runs: int, jobs: int = 1, method: str | Seq
                 try:
                     crlb = crlb_future.result()
                 except Exception as exc:
-                    crlb = {"seed": seed0, "values": {}, "error": _one_line(exc)}
+                    crlb = {"seed": seed0, "values": {}, "error": one_line(exc, limit=None)}
             except BaseException:
                 pool.shutdown(wait=False, cancel_futures=True)
                 raise
