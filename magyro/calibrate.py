@@ -12,16 +12,18 @@
        variance-component step)
     7. marginal covariance of the calibration parameters, QR split, std;
        rest-period bias check; windows where the field does not fit
+    8. optionally (Options.split_check) each half calibrated alone and compared
+       (magyro.consistency)
 """
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
 
-from . import magfit, noise, rests, so3
+from . import consistency, magfit, noise, rests, so3
 from .errors import InputError, ObservabilityError, SolverError
 from .initial import linear_gyro_estimate, with_time_offset
 from .observability import ObservabilityAnalysis, analyse
@@ -59,6 +61,7 @@ class Options:
     huber_threshold: float = 3.0            # in noise sigmas
     trim_rests: bool = True                 # drop the rests at both ends (the paper does)
     reweight_noise: bool = True             # robust variance-component step on the magnetometer noise
+    split_check: bool = False               # also calibrate each half alone and compare (magyro.consistency)
 
 
 @dataclass
@@ -397,7 +400,19 @@ def calibrate(session: Session, options: Options | None = None) -> Calibration:
             f"(a further Gauss-Newton step would still reduce chi^2 by {decrement:.3g})"
         )
     sol.stats["gauss_newton_decrement"] = decrement
-    return assemble(problem, prep, grid, sol, reduced, options, time.perf_counter() - t_start)
+    cal = assemble(problem, prep, grid, sol, reduced, options, time.perf_counter() - t_start)
+    if options.split_check:
+        with_split_check(cal, prep.session, options)
+    return cal
+
+
+def with_split_check(cal: Calibration, moving: Session, options: Options) -> None:
+    """Add the split-half consistency report (and its warning) to `cal`."""
+    report = consistency.split_check(moving, cal, replace(options, split_check=False), calibrate)
+    cal.consistency = report
+    warning = consistency.split_warning(report)
+    if warning:
+        cal.warnings.append(warning)
 
 
 def residual_summary(problem: JointProblem, r: np.ndarray) -> dict:

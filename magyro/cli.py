@@ -68,6 +68,7 @@ def solve(
     loss: str = typer.Option("l2", "--loss", help="Loss on the magnetometer residuals: l2, or huber (robust to spikes and local iron)."),
     time_offset: bool = typer.Option(True, "--time-offset/--no-time-offset", help="Estimate the magnetometer's lag behind the gyro (default) or fix it to 0."),
     keep_rests: bool = typer.Option(False, "--keep-rests", help="Keep the rests at both ends in the solve (default: trimmed, as the paper does)."),
+    split_check: bool = typer.Option(False, "--split-check", help="Also calibrate each half of the recording alone and warn when they disagree beyond their std (about 2x the time)."),
     method: str = typer.Option("nls", "--method", help="nls (the joint least squares) or ekf (the paper's two steps and error-state EKF)."),
     history: Optional[Path] = typer.Option(None, "--history", help="--method ekf: write K, bias, m^i and their 1-sigma over time (Parquet)."),
     history_plot: Optional[Path] = typer.Option(None, "--history-plot", help="--method ekf: plot them like the paper's Fig. 3/6/7 (needs magyro[plot])."),
@@ -75,7 +76,7 @@ def solve(
 ):
     """The joint calibration: magnetometer ellipsoid, gyro K_g, bias, misalignment, field, attitude.
 
-    --stride, --loss and --time-offset apply to the nls method only.
+    --stride, --loss, --time-offset and --split-check apply to the nls method only.
     """
     from .calibrate import Options, calibrate
     from .errors import InputError
@@ -86,7 +87,7 @@ def solve(
         opts = Options(
             gyro_noise_density_rad_s_sqrt_hz=None if gyro_noise_deg_s_sqrt_hz is None else float(np.deg2rad(gyro_noise_deg_s_sqrt_hz)),
             mag_noise_std=mag_noise, stride=stride, force=force, loss=loss,
-            estimate_time_offset=time_offset, trim_rests=not keep_rests,
+            estimate_time_offset=time_offset, trim_rests=not keep_rests, split_check=split_check,
         )
         if method not in ("nls", "ekf"):
             raise InputError(f"unknown method '{method}'; use nls or ekf")

@@ -77,6 +77,7 @@ class Calibration:
     rests: dict | None = None      # rest segments and the bias they imply
     warnings: list = field(default_factory=list)
     covariance_theta: np.ndarray | None = None  # 23x23, internal correction parameters
+    consistency: dict | None = None  # split-half check (magyro.consistency), when asked for
 
     @property
     def bias_deg_s(self) -> np.ndarray:
@@ -110,6 +111,7 @@ class Calibration:
             "solver": self.solver,
             "noise": self.noise,
             "fit": self.fit,
+            **({"consistency": self.consistency} if self.consistency is not None else {}),
         }
 
     def to_json(self) -> str:
@@ -140,6 +142,10 @@ class Calibration:
         if self.rests and self.rests.get("bias_deg_s"):
             rb = self.rests["bias_deg_s"]
             lines.append(f"bias from {self.rests['seconds']:.1f} s of rest (deg/s)  " + "  ".join(f"{v:+8.4f}" for v in rb))
+        if self.consistency and "max_abs_z" in self.consistency:
+            c = self.consistency
+            lines.append(f"split-half check: the halves differ by {c['rms_z']:.1f} sigma RMS, at most {c['max_abs_z']:.1f} "
+                         f"({c['worst']}); above {c['max_rms_z']:.0f} RMS or {c['max_half_z']:.0f} is a warning")
         ob = self.observability
         lines.append(f"observability: rank {ob['rank']} of 12, condition {ob['condition']:.3g}")
         sv = self.solver
