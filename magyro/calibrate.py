@@ -220,7 +220,8 @@ def linearise(prep: Prepared, grid: Grid, options: Options, search_lag: bool = T
         lin0 = linear_gyro_estimate(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, prep.field_m, time_offset_s=options.time_offset_s)
     qr_split(lin0.K)  # a mirrored gyro shows already in the linear estimate: say so before solving
     C = nominal_attitudes(s, lin0.K, lin0.eps, grid.t_node_s)
-    m0 = initial_field(C, prep.field_m[grid.node_mag_index])
+    on_sample = grid.node_on_sample
+    m0 = initial_field(C[on_sample], prep.field_m[grid.node_mag_index[on_sample]])
     S0 = np.linalg.inv(prep.fit.R)
     return Linearisation(S0, prep.fit.h, lin0.K, lin0.eps, m0, C, float(np.mean(np.diag(S0))), lin0.time_offset_s)
 
@@ -336,7 +337,7 @@ def magnetometer_noise_factor(problem: JointProblem, x, p) -> float:
     correlated model error (a field not quite homogeneous) counts as what it
     is: fewer independent samples.
     """
-    r = residual_matrix(problem, x, p)[:, :-3].reshape(-1, 3)  # time-ordered samples
+    r = residual_matrix(problem, x, p)[:, :-3].reshape(-1, 3)[problem.grid.sample_mask]  # time-ordered samples
     scale = np.sqrt(np.median(np.sum(r**2, axis=1)) / CHI2_3DOF_MEDIAN)
     return float(scale * np.sqrt(noise.integrated_autocorrelation_time(r)))
 
@@ -417,10 +418,11 @@ def with_split_check(cal: Calibration, moving: Session, options: Options) -> Non
 
 def residual_summary(problem: JointProblem, r: np.ndarray) -> dict:
     """Fit statistics of the whitened residual matrix r (one row per interval)."""
-    n_res = r.size
+    mag = r[:, :-3].reshape(-1, 3)[problem.grid.sample_mask]
+    n_res = mag.size + r[:, -3:].size   # the segments bridging a gap have no magnetometer residual
     dof = n_res - problem.n_x
     return {
-        "mag_rms_normalised": float(np.sqrt(np.mean(r[:, :-3] ** 2))),
+        "mag_rms_normalised": float(np.sqrt(np.mean(mag**2))),
         "gyro_rms_normalised": float(np.sqrt(np.mean(r[:, -3:] ** 2))),
         "variance_factor": float(np.sum(r**2)) / dof,
         "residuals": int(n_res),
@@ -437,13 +439,15 @@ def runs_of_true(mask: np.ndarray) -> list[tuple[int, int]]:
 def suspect_segments(grid: Grid, residuals: np.ndarray) -> list[dict]:
     """Windows where the magnetometer fits far worse than typical (spikes, iron or a magnet near the path)."""
     r = residuals[:, :-3]
+    samples = 3 * grid.mag_weight.sum(axis=1)  # residual entries per interval with a magnetometer sample
     t = grid.t_node_s[:-1]
     window = np.floor((t - t[0]) / SUSPECT_WINDOW_S).astype(int)
     n_w = window.max() + 1
-    ms = np.bincount(window, weights=np.sum(r**2, axis=1), minlength=n_w) / np.maximum(np.bincount(window, minlength=n_w) * r.shape[1], 1)
-    rms = np.sqrt(ms)
-    typical = np.median(rms)
-    bad = rms > SUSPECT_FACTOR * typical
+    count = np.bincount(window, weights=samples, minlength=n_w)
+    rms = np.sqrt(np.bincount(window, weights=np.sum(r**2, axis=1), minlength=n_w) / np.maximum(count, 1))
+    has = count > 0   # a window inside a gap in the magnetometer record has nothing to judge
+    typical = np.median(rms[has])
+    bad = has & (rms > SUSPECT_FACTOR * typical)
     out = []
     for a, b in runs_of_true(bad):
         out.append({

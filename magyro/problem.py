@@ -21,7 +21,8 @@ error for rates linear in time). Residuals, whitened:
 
     magnetometer  (y_m - h - R^-1 C_i^m(t_j - tau) m^i) * w_mag        raw units, with
                   C_i^m(t - tau) = Exp(tau w(t - tau0/2)) C_i^m(t) and, optionally, a Huber
-                  loss (the residual scaled to sqrt(2 rho(|r|)) / |r|)
+                  loss (the residual scaled to sqrt(2 rho(|r|)) / |r|); weight 0 on the
+                  segments that bridge a gap in the magnetometer record (Grid)
     gyro          Winv vee(E - E^T)/2 / sqrt(T_n)                      E: mismatch of
                   the integrated gyro against the two node attitudes, Winv = L^-1 / sigma_g
                   with L L^T = K0 K0^T (the gyro noise enters through K)
@@ -55,14 +56,19 @@ class Grid:
 
     Interval n (node n to n+1) holds `stride` segments, each from one
     magnetometer sample to the next, each cut into at most `substeps`
-    sub-steps (padded with zero length).
+    sub-steps (padded with zero length). A gap in the magnetometer record is
+    bridged by segments that start at no sample (weight 0): every segment is
+    then at most MAX_SEGMENT_FACTOR typical intervals long, so one gap does
+    not pad every interval of the session to its length.
     """
 
     t_node_s: np.ndarray         # (N,)
-    mag_index: np.ndarray        # (N-1, stride) magnetometer sample at each segment start
+    mag_index: np.ndarray        # (N-1, stride) magnetometer sample at each segment start (the one before, if none)
     dt_s: np.ndarray             # (N-1, stride, L)
     gyro_a: np.ndarray           # (N-1, stride, L, 3) raw gyro at each sub-step start
     gyro_b: np.ndarray           # (N-1, stride, L, 3) raw gyro at each sub-step end
+    last_mag_index: int          # magnetometer sample at the last node
+    mag_weight: np.ndarray       # (N-1, stride) 1 where a segment starts at a sample, 0 in a gap
 
     @property
     def nodes(self) -> int:
@@ -80,20 +86,52 @@ class Grid:
     def interval_s(self) -> np.ndarray:
         return np.diff(self.t_node_s)
 
-    last_mag_index: int          # magnetometer sample at the last node
-
     @property
     def node_mag_index(self) -> np.ndarray:
-        """Magnetometer sample at each node."""
+        """Magnetometer sample at each node (the one before it, for a node in a gap)."""
         return np.append(self.mag_index[:, 0], self.last_mag_index)
+
+    @property
+    def node_on_sample(self) -> np.ndarray:
+        """True for the nodes that sit on a magnetometer sample (the last node always does)."""
+        return np.append(self.mag_weight[:, 0] > 0, True)
+
+    @property
+    def sample_mask(self) -> np.ndarray:
+        """(N-1) * stride flags, in residual order: True for segments with a magnetometer sample."""
+        return self.mag_weight.reshape(-1) > 0
+
+
+MAX_SEGMENT_FACTOR = 1.5  # segments longer than this many typical magnetometer intervals are cut
+
+
+def segment_starts(t_mag_s: np.ndarray, used: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(times, magnetometer index, on-a-sample flag) of every segment boundary.
+
+    The used samples' times, plus evenly spaced boundaries inside each gap
+    longer than MAX_SEGMENT_FACTOR typical intervals; those carry the index of
+    the sample before the gap and the flag False.
+    """
+    t = t_mag_s[used]
+    dt = np.diff(t)
+    typical = float(np.median(dt)) if len(dt) else 0.0
+    pieces = np.ones(len(dt), dtype=int)
+    if typical > 0:
+        long = dt > MAX_SEGMENT_FACTOR * typical
+        pieces[long] = np.ceil(dt[long] / typical).astype(int)
+    starts = np.repeat(np.arange(len(dt)), pieces)
+    within = np.arange(len(starts)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    times = t[starts] + dt[starts] * within / pieces[starts]
+    return (np.append(times, t[-1]), np.append(used[starts], used[-1]), np.append(within == 0, True))
 
 
 def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
-    """Nodes on every `stride`-th magnetometer sample inside the gyro's time span."""
+    """Nodes on every `stride`-th segment boundary (magnetometer samples, gaps cut) inside the gyro's span."""
     usable = np.flatnonzero((t_mag_s >= t_gyro_s[0]) & (t_mag_s <= t_gyro_s[-1]))
-    n_int = (len(usable) - 1) // stride
-    seg_idx = usable[: n_int * stride + 1]
-    t_seg = t_mag_s[seg_idx]
+    t_bound, idx_bound, on_sample = segment_starts(t_mag_s, usable)
+    n_int = (len(t_bound) - 1) // stride
+    t_seg = t_bound[: n_int * stride + 1]
+    seg_idx = idx_bound[: n_int * stride + 1]
     inside = t_gyro_s[(t_gyro_s > t_seg[0]) & (t_gyro_s < t_seg[-1])]
     t_all = np.union1d(inside, t_seg)
     y_all = np.column_stack([np.interp(t_all, t_gyro_s, gyro_rad_s[:, i]) for i in range(3)])
@@ -108,7 +146,8 @@ def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
     dt[interval, segment, pos] = np.diff(t_all)
     ya[interval, segment, pos] = y_all[:-1]
     yb[interval, segment, pos] = y_all[1:]
-    return Grid(t_seg[::stride], seg_idx[:-1].reshape(n_int, stride), dt, ya, yb, int(seg_idx[-1]))
+    weight = on_sample[: n_int * stride].reshape(n_int, stride).astype(float)
+    return Grid(t_seg[::stride], seg_idx[:-1].reshape(n_int, stride), dt, ya, yb, int(seg_idx[-1]), weight)
 
 
 # ------------------------------------------------------------- SX building blocks
@@ -162,7 +201,8 @@ def unpack_globals(theta, g):
 
 
 def data_layout(stride: int, L: int) -> list[tuple[str, int]]:
-    return [("Cbar", 9), ("qD", 4), ("w_int", 1), ("ymag", 3 * stride), ("ymid", 3 * stride), ("dt", stride * L), ("ya", 3 * stride * L), ("yb", 3 * stride * L)]
+    return [("Cbar", 9), ("qD", 4), ("w_int", 1), ("ymag", 3 * stride), ("wseg", stride), ("ymid", 3 * stride),
+            ("dt", stride * L), ("ya", 3 * stride * L), ("yb", 3 * stride * L)]
 
 
 def huber_scaled(r, threshold: float):
@@ -190,7 +230,7 @@ def interval_residuals(theta, phi_k, phi_k1, g, d, stride: int, L: int, huber: f
         v = rotate_inverse(Q, n_k)  # C_i^m(t_j) m^i at the stamp; then back by the time offset
         w_mid = ca.mtimes(K, parts["ymid"][3 * i : 3 * i + 3]) + eps
         v = rotate_inverse(quat_conj(quat_exp(tau * w_mid)), v)
-        r_mag = (parts["ymag"][3 * i : 3 * i + 3] - ca.mtimes(S, v) - h) * w_mag
+        r_mag = (parts["ymag"][3 * i : 3 * i + 3] - ca.mtimes(S, v) - h) * (w_mag * parts["wseg"][i])
         res.append(r_mag if huber is None else huber_scaled(r_mag, huber))
         for l in range(L):
             j = i * L + l
@@ -350,6 +390,7 @@ class JointProblem:
             "qD": so3.dcm_to_quat(D),
             "w_int": (1.0 / np.sqrt(g_.interval_s))[:, None],
             "ymag": np.asarray(y_mag)[g_.mag_index].reshape(n_int, 3 * s),
+            "wseg": g_.mag_weight.reshape(n_int, s),
             "ymid": gyro_at_mag_midpoints(g_, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s).reshape(n_int, 3 * s),
             "dt": g_.dt_s.reshape(n_int, s * L),
             "ya": g_.gyro_a.reshape(n_int, 3 * s * L),
