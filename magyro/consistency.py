@@ -20,7 +20,7 @@ from dataclasses import replace
 import numpy as np
 
 from .errors import MagyroError
-from .importers import trim
+from .rests import trimmed
 from .result import Calibration
 from .session import Session
 
@@ -93,7 +93,7 @@ def split_check(moving: Session, full: Calibration, options, calibrate) -> dict:
     halves, failures = [], []
     for k, (t0, t1) in enumerate(spans):
         try:
-            halves.append(calibrate(trim(moving, t0, t1), opts))
+            halves.append(calibrate(trimmed(moving, t0, t1), opts))
         except MagyroError as exc:
             failures.append(f"{('first', 'second')[k]} half ({t0:.1f}-{t1:.1f} s): {exc}")
     report = {"spans_s": [list(s) for s in spans], "max_half_z": MAX_HALF_Z, "max_rms_z": MAX_RMS_Z}
