@@ -469,3 +469,18 @@ def test_failure_mid_write_keeps_previous_file(tmp_path, monkeypatch):
         write_session(s, target)
     assert target.read_text() == "previous"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.csv", "out.csv"]
+
+
+def test_the_solve_path_imports_neither_pandas_nor_scipy():
+    """Loading a Parquet session and everything `magyro solve` imports stays off pandas and scipy
+    (each adds 0.2-0.4 s to every run; benchmarks/bench_solve.py times the whole process)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    shipped = Path(__file__).resolve().parents[1] / "data" / "broad-02.parquet"
+    code = ("import sys, magyro.cli, magyro.calibrate, magyro.consistency, magyro.io; "
+            f"magyro.io.load_session({str(shipped)!r}); "
+            "print(sorted(m for m in ('pandas', 'scipy', 'pyarrow.compute') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]", out.stdout
