@@ -91,6 +91,8 @@ def solve(
         )
         if method not in ("nls", "ekf"):
             raise InputError(f"unknown method '{method}'; use nls or ekf")
+        if method == "ekf" and split_check:
+            raise InputError("--split-check needs --method nls (it compares two least-squares solves)")
         if method == "nls" and (history is not None or history_plot is not None):
             raise InputError("--history and --history-plot need --method ekf (the least squares has no estimate over time)")
         if method == "ekf":

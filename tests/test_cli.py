@@ -65,6 +65,16 @@ def solved_dir(sim_dir, run_magyro):
     return {"dir": sim_dir, "solve": solve, "hash_before": before}
 
 
+@pytest.mark.parametrize("args, message", [
+    (["--split-check", "--method", "ekf"], "--split-check needs --method nls"),
+    (["--history", "h.parquet"], "--history and --history-plot need --method ekf"),
+])
+def test_options_of_the_other_method_exit_2(args, message, sim_dir, run_magyro, assert_plain_failure):
+    r = run_magyro("solve", "X.parquet", "-o", "never.json", *args, cwd=sim_dir)
+    assert message in assert_plain_failure(r, 2)
+    assert not (sim_dir / "never.json").exists() and not (sim_dir / "h.parquet").exists()
+
+
 def test_simulate_writes_session_and_truth(sim_dir):
     d = sim_dir
     session, truth = simulate(load_problem("paper-table1"), SEED)
