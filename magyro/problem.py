@@ -35,6 +35,7 @@ product), so no derivative of the whole graph is ever formed.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import casadi as ca
 import numpy as np
@@ -321,7 +322,6 @@ class JointProblem:
         self.physical_function = ca.Function(
             "physical", [th, g], [S, h, K, eps, m_i, tau], ["theta", "g"], ["S", "h", "K", "eps", "m_i", "tau"]
         )
-        self._build_graph()
         self._solver = None
 
     # ------------------------------------------------------------------ MX graph
@@ -333,36 +333,58 @@ class JointProblem:
         D = ca.reshape(p[self.n_glob_p :], self.n_data, self.n_int)
         return theta, phi_k, phi, g, D
 
-    def _build_graph(self):
+    # The three MX graphs are built on first use: the accuracy prediction and the CRLB need only
+    # the Hessian, which saves two thirds of the graph-building time of `magyro observe`.
+    @cached_property
+    def _symbols(self):
         x = ca.MX.sym("x", self.n_x)
         p = ca.MX.sym("p", self.n_glob_p + self.n_data * self.n_int)
-        theta, phi_k, phi_k1, g, D = self._split(x, p)
-        R = self.residual_kernel.map(self.n_int)(theta, phi_k, phi_k1, g, D)
-        r = ca.vec(R)
-        self.residual_function = ca.Function("residuals", [x, p], [r])
-        self._x, self._p, self._f = x, p, 0.5 * ca.sumsqr(r)
+        return x, p, self._split(x, p)
 
-        ssq, g_t, g_l, g_r = self.gradient_kernel.map(self.n_int)(theta, phi_k, phi_k1, g, D)
+    @cached_property
+    def _residual_graph(self):
+        x, p, args = self._symbols
+        r = ca.vec(self.residual_kernel.map(self.n_int)(*args))
+        return ca.Function("residuals", [x, p], [r]), 0.5 * ca.sumsqr(r)
+
+    @property
+    def residual_function(self) -> ca.Function:
+        return self._residual_graph[0]
+
+    @cached_property
+    def _gradient_graph(self):
+        x, p, args = self._symbols
+        ssq, g_t, g_l, g_r = self.gradient_kernel.map(self.n_int)(*args)
         grad_phi = ca.horzcat(g_l[:, 1:], ca.MX.zeros(3, 1)) + g_r
         grad = ca.vertcat(ca.sum2(g_t), ca.vec(grad_phi))
-        self._grad_f = ca.Function("nlp_grad_f", [x, p], [0.5 * ca.sum2(ssq), grad], ["x", "p"], ["f", "grad_f_x"])
-        self.gradient_function = ca.Function("gradient", [x, p], [grad])
+        grad_f = ca.Function("nlp_grad_f", [x, p], [0.5 * ca.sum2(ssq), grad], ["x", "p"], ["f", "grad_f_x"])
+        return ca.Function("gradient", [x, p], [grad]), grad_f
 
-        JthT, CL, CR, DL, DR, O = self.gn_kernel.map(self.n_int)(theta, phi_k, phi_k1, g, D)
-        n3 = 3 * self.n_int
+    @property
+    def gradient_function(self) -> ca.Function:
+        return self._gradient_graph[0]
+
+    @cached_property
+    def _hessian_graph(self):
+        x, p, args = self._symbols
+        JthT, CL, CR, DL, DR, O = self.gn_kernel.map(self.n_int)(*args)
         H_tt = ca.mtimes(JthT, JthT.T)
         H_tp = ca.horzcat(CL[:, 3:], ca.MX.zeros(self.n_theta, 3)) + CR
         H_pp = ca.horzcat(DL[:, 3:], ca.MX.zeros(3, 3)) + DR
+        assert H_tp.shape[1] == 3 * self.n_int
         values = ca.vertcat(ca.vec(ca.densify(H_tt)), ca.vec(ca.densify(H_tp)), ca.vec(ca.densify(H_pp)), ca.vec(ca.densify(O)))
         sp, perm = hessian_pattern(self.n_int, self.n_theta)
         H = ca.MX(sp, values[perm])
-        self.hessian_function = ca.Function("gauss_newton_hessian", [x, p], [H])
         lam_f = ca.MX.sym("lam_f")
         lam_g = ca.MX.sym("lam_g", 0)
-        self._hess_lag = ca.Function(
+        hess_lag = ca.Function(
             "nlp_hess_l", [x, p, lam_f, lam_g], [lam_f * H], ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]
         )
-        assert n3 == H_tp.shape[1]
+        return ca.Function("gauss_newton_hessian", [x, p], [H]), hess_lag
+
+    @property
+    def hessian_function(self) -> ca.Function:
+        return self._hessian_graph[0]
 
     # ---------------------------------------------------------------- numbers in
     def parameters(self, lin: Linearisation, y_mag, sigma_mag: float, sigma_gyro_density: float,
@@ -403,8 +425,8 @@ class JointProblem:
     def solver(self, ipopt_options: dict | None = None):
         if self._solver is None:
             opts = {
-                "hess_lag": self._hess_lag,
-                "grad_f": self._grad_f,
+                "hess_lag": self._hessian_graph[1],
+                "grad_f": self._gradient_graph[1],
                 "calc_lam_p": False,
                 "no_nlp_grad": True,  # grad_f and hess_lag are given: nothing needs to differentiate f
                 "calc_lam_x": False,
@@ -426,7 +448,8 @@ class JointProblem:
                 "ipopt.linear_solver": "mumps",
             }
             opts.update(ipopt_options or {})
-            self._solver = ca.nlpsol("joint", "ipopt", {"x": self._x, "p": self._p, "f": self._f}, opts)
+            x, p, _ = self._symbols
+            self._solver = ca.nlpsol("joint", "ipopt", {"x": x, "p": p, "f": self._residual_graph[1]}, opts)
         return self._solver
 
 
