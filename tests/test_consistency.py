@@ -58,13 +58,17 @@ def test_a_magnetometer_turned_half_way_is_caught(paper, paper_checked):
     cal = calibrate(turned_second_half(session, truth, 0.5), Options(split_check=True))
     report = cal.consistency
     assert report["rms_z"] > consistency.MAX_RMS_Z, report["rms_z"]
-    assert report["worst"] == "yaw_deg", report["worst"]
-    # C_b_m -> Rz(0.5 deg) C_b_m in the second half: its yaw (ZYX) moves by the turn, the first half's not at all
-    before, after = paper_checked.consistency["parameters"]["yaw_deg"], report["parameters"]["yaw_deg"]
-    assert after["second"] - before["second"] == pytest.approx(0.5, abs=0.01)
-    assert after["first"] == pytest.approx(before["first"], abs=1e-6)
+    assert report["worst"].startswith("misalignment_d"), report["worst"]
+    # C_b_m -> Rz(0.5 deg) C_b_m in the second half: the halves' difference in d turns by 0.5 deg about
+    # the m frame's z axis, which is C_b_m^T e_z in the gyro frame; the first half is the same data
+    names = [f"misalignment_d{a}_deg" for a in "xyz"]
+    before = paper_checked.consistency["parameters"]
+    shift = np.array([before[n]["difference"] - report["parameters"][n]["difference"] for n in names])
+    axis = paper_checked.C_b_m.T @ np.array([0.0, 0.0, 1.0])
+    np.testing.assert_allclose(shift, 0.5 * axis, atol=0.01)
+    assert report["parameters"]["K_g[0,0]"]["first"] == pytest.approx(before["K_g[0,0]"]["first"], abs=1e-9)
     warning = [w for w in cal.warnings if "halves" in w]
-    assert len(warning) == 1 and "understates the error" in warning[0] and "yaw_deg" in warning[0]
+    assert len(warning) == 1 and "understates the error" in warning[0] and report["worst"] in warning[0]
 
 
 def test_a_half_that_cannot_be_solved_is_reported(paper):
