@@ -58,9 +58,9 @@ class Grid:
     Interval n (node n to n+1) holds `stride` segments, each from one
     magnetometer sample to the next, each cut into at most `substeps`
     sub-steps (padded with zero length). A gap in the magnetometer record is
-    bridged by segments that start at no sample (weight 0): every segment is
-    then at most MAX_SEGMENT_FACTOR typical intervals long, so one gap does
-    not pad every interval of the session to its length.
+    bridged by segments about one typical interval long that start at no
+    sample (weight 0), so one gap does not pad every interval of the session
+    to its length.
     """
 
     t_node_s: np.ndarray         # (N,)
@@ -106,30 +106,38 @@ class Grid:
 MAX_SEGMENT_FACTOR = 1.5  # segments longer than this many typical magnetometer intervals are cut
 
 
-def segment_starts(t_mag_s: np.ndarray, used: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def segment_starts(t_mag_s: np.ndarray, used: np.ndarray, t_gyro_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(times, magnetometer index, on-a-sample flag) of every segment boundary.
 
-    The used samples' times, plus evenly spaced boundaries inside each gap
-    longer than MAX_SEGMENT_FACTOR typical intervals; those carry the index of
-    the sample before the gap and the flag False.
+    The used samples' times, plus boundaries inside each gap longer than
+    MAX_SEGMENT_FACTOR typical intervals, about one typical interval apart and
+    placed on gyro times (so they add no sub-step, and the kernels keep the
+    gap-free session's shape); those carry the index of the sample before the
+    gap and the flag False.
     """
     t = t_mag_s[used]
     dt = np.diff(t)
     typical = float(np.median(dt)) if len(dt) else 0.0
-    pieces = np.ones(len(dt), dtype=int)
-    if typical > 0:
-        long = dt > MAX_SEGMENT_FACTOR * typical
-        pieces[long] = np.ceil(dt[long] / typical).astype(int)
-    starts = np.repeat(np.arange(len(dt)), pieces)
-    within = np.arange(len(starts)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
-    times = t[starts] + dt[starts] * within / pieces[starts]
-    return (np.append(times, t[-1]), np.append(used[starts], used[-1]), np.append(within == 0, True))
+    long = np.flatnonzero(dt > MAX_SEGMENT_FACTOR * typical) if typical > 0 else np.array([], dtype=int)
+    extra_t, extra_i = [], []
+    for k in long:
+        pieces = int(np.ceil(dt[k] / typical))
+        wanted = t[k] + dt[k] * np.arange(1, pieces) / pieces
+        inside = t_gyro_s[(t_gyro_s > t[k]) & (t_gyro_s < t[k + 1])]
+        snapped = np.unique(inside[np.clip(np.searchsorted(inside, wanted), 0, len(inside) - 1)]) if len(inside) else wanted
+        extra_t.append(snapped)
+        extra_i.append(np.full(len(snapped), used[k]))
+    times = np.concatenate([t] + extra_t)
+    index = np.concatenate([used] + extra_i)
+    on_sample = np.concatenate([np.ones(len(t), dtype=bool)] + [np.zeros(len(e), dtype=bool) for e in extra_t])
+    order = np.argsort(times, kind="stable")
+    return times[order], index[order], on_sample[order]
 
 
 def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
     """Nodes on every `stride`-th segment boundary (magnetometer samples, gaps cut) inside the gyro's span."""
     usable = np.flatnonzero((t_mag_s >= t_gyro_s[0]) & (t_mag_s <= t_gyro_s[-1]))
-    t_bound, idx_bound, on_sample = segment_starts(t_mag_s, usable)
+    t_bound, idx_bound, on_sample = segment_starts(t_mag_s, usable, t_gyro_s)
     n_int = (len(t_bound) - 1) // stride
     t_seg = t_bound[: n_int * stride + 1]
     seg_idx = idx_bound[: n_int * stride + 1]
