@@ -314,7 +314,7 @@ def broad30():
 
 @pytest.fixture(scope="module")
 def broad09():
-    return calibrate(broad_trimmed(BROAD_09), Options())
+    return calibrate(broad_trimmed(BROAD_09), Options(split_check=True))
 
 
 def field_warnings(cal) -> list[str]:
@@ -336,3 +336,15 @@ def test_magnet_beside_the_path_gives_a_clear_warning(broad30):
 def test_undisturbed_trial_gives_no_field_warning(broad09):
     print(f"\ntrial 09 warnings: {broad09.warnings}; field change {broad09.fit['field_change']}")
     assert not field_warnings(broad09), broad09.warnings
+
+
+@pytest.mark.broad
+@pytest.mark.slow
+@needs_broad
+def test_split_half_check_says_the_std_is_too_small_on_a_real_trial(broad09):
+    """docs/real-data.md section 2: the halves of trial 09 disagree by 2.9 sigma RMS (simulated: at most 1.35)."""
+    report = broad09.consistency
+    assert report["rms_z"] > 2.0, report["rms_z"]
+    assert [w for w in broad09.warnings if "halves of the recording disagree" in w], broad09.warnings
+    worst = report["parameters"][report["worst"]]
+    assert worst["split_std"] > 2.0 * worst["reported_std"], worst
