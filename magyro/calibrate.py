@@ -157,7 +157,7 @@ def moving_session(session: Session, options: Options) -> tuple[Session, NoiseLe
     found = rests.find_rests(session)
     levels = noise_levels(session, options, found)
     if options.trim_rests and found.segments_s:
-        moving = rests.trimmed(session, *rests.moving_span(session, found))
+        moving = session.within(*rests.moving_span(session, found))
         if min(len(moving.t_mag_s), len(moving.t_gyro_s)) >= MIN_MOVING_SAMPLES:
             session = moving
     return session, levels, found

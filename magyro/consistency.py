@@ -22,7 +22,6 @@ from dataclasses import replace
 import numpy as np
 
 from .errors import MagyroError
-from .rests import trimmed
 from .result import Calibration, misalignment_vector
 from .session import Session
 
@@ -97,7 +96,7 @@ def split_check(moving: Session, full: Calibration, options, calibrate) -> dict:
     halves, failures = [], []
     for k, (t0, t1) in enumerate(spans):
         try:
-            halves.append(calibrate(trimmed(moving, t0, t1), opts))
+            halves.append(calibrate(moving.within(t0, t1), opts))
         except MagyroError as exc:
             failures.append(f"{('first', 'second')[k]} half ({t0:.1f}-{t1:.1f} s): {exc}")
     report = {"spans_s": [list(s) for s in spans], "max_half_z": MAX_HALF_Z, "max_rms_z": MAX_RMS_Z}

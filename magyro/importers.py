@@ -514,28 +514,13 @@ def trim(session: Session, t0_s: float, t1_s: float) -> Session:
     t0_s, t1_s = float(t0_s), float(t1_s)
     if not (np.isfinite(t0_s) and np.isfinite(t1_s)) or t1_s <= t0_s:
         raise InputError(f"trim window [{t0_s}, {t1_s}] s is empty; it needs t0 < t1")
-
-    def cut(t, values):
-        if t is None or values is None:
-            return None, None
-        keep = (t >= t0_s) & (t <= t1_s)
-        if not keep.any():
-            return None, None
-        return t[keep].copy(), values[keep].copy()
-
-    t_g, g = cut(session.t_gyro_s, session.gyro_rad_s)
-    t_m, m = cut(session.t_mag_s, session.mag)
-    for name, t_x, group in (("gyro", t_g, io.GYRO_COLUMNS), ("magnetometer", t_m, io.MAG_COLUMNS)):
-        n = 0 if t_x is None else len(t_x)
-        if n < io.MIN_SAMPLES:
-            raise InputError(f"trim window [{t0_s:g}, {t1_s:g}] s keeps {n} {name} samples, need at least "
+    cut = session.within(t0_s, t1_s)
+    for name, t_x in (("gyro", cut.t_gyro_s), ("magnetometer", cut.t_mag_s)):
+        if len(t_x) < io.MIN_SAMPLES:
+            raise InputError(f"trim window [{t0_s:g}, {t1_s:g}] s keeps {len(t_x)} {name} samples, need at least "
                              f"{io.MIN_SAMPLES}; the session spans {session.t_gyro_s[0]:g} to "
                              f"{session.t_gyro_s[-1]:g} s")
-    t_a, a = cut(session.t_acc_s, session.acc_m_s2)
-    t_q, q = cut(session.t_quat_s, session.quat_wxyz)
-    metadata = {**session.metadata, "trimmed_to_s": f"{t0_s!r} {t1_s!r}"}
-    return replace(session, t_gyro_s=t_g, gyro_rad_s=g, t_mag_s=t_m, mag=m, t_acc_s=t_a, acc_m_s2=a,
-                   t_quat_s=t_q, quat_wxyz=q, metadata=metadata)
+    return replace(cut, metadata={**session.metadata, "trimmed_to_s": f"{t0_s!r} {t1_s!r}"})
 
 
 def decimate(session: Session, n: int) -> Session:

@@ -114,13 +114,3 @@ def moving_span(session: Session, rests: Rests) -> tuple[float, float]:
         if b >= session.t_gyro_s[-1] - margin:
             end = min(end, a + margin)
     return start, end
-
-
-def trimmed(session: Session, t0_s: float, t1_s: float) -> Session:
-    """The session restricted to [t0_s, t1_s] (gyro and magnetometer)."""
-    from dataclasses import replace
-
-    g = (session.t_gyro_s >= t0_s) & (session.t_gyro_s <= t1_s)
-    m = (session.t_mag_s >= t0_s) & (session.t_mag_s <= t1_s)
-    return replace(session, t_gyro_s=session.t_gyro_s[g], gyro_rad_s=session.gyro_rad_s[g],
-                   t_mag_s=session.t_mag_s[m], mag=session.mag[m])

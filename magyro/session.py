@@ -6,7 +6,7 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -40,3 +40,27 @@ class Session:
     @property
     def mag_rate_hz(self) -> float:
         return float((len(self.t_mag_s) - 1) / (self.t_mag_s[-1] - self.t_mag_s[0]))
+
+    def within(self, t0_s: float, t1_s: float) -> "Session":
+        """The session cut to t0_s <= t <= t1_s: every sensor and the truth, times unchanged.
+
+        No checks: gyro and magnetometer may come out short or empty (callers
+        that need samples check the counts); an optional stream with no sample
+        left becomes None.
+        """
+        def cut(t, values):
+            keep = (t >= t0_s) & (t <= t1_s)
+            return t[keep], values[keep]
+
+        def cut_optional(t, values):
+            if t is None or values is None:
+                return None, None
+            t_kept, kept = cut(t, values)
+            return (t_kept, kept) if len(t_kept) else (None, None)
+
+        t_g, g = cut(self.t_gyro_s, self.gyro_rad_s)
+        t_m, m = cut(self.t_mag_s, self.mag)
+        t_a, a = cut_optional(self.t_acc_s, self.acc_m_s2)
+        t_q, q = cut_optional(self.t_quat_s, self.quat_wxyz)
+        return replace(self, t_gyro_s=t_g, gyro_rad_s=g, t_mag_s=t_m, mag=m, t_acc_s=t_a, acc_m_s2=a,
+                       t_quat_s=t_q, quat_wxyz=q)
