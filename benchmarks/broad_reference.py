@@ -60,7 +60,7 @@ from scipy.optimize import least_squares, minimize, minimize_scalar
 
 from magyro import so3
 from magyro.calibrate import Options, moving_session
-from magyro.importers import broad_movement_span, import_broad, trim
+from magyro.importers import import_broad_movement
 from magyro.result import qr_split
 from magyro.session import Session
 
@@ -139,9 +139,7 @@ def optical_position_m(path: Path, t_s: np.ndarray, rate_hz: float) -> np.ndarra
 
 def load_trial(broad_dir: Path, name: str) -> Trial:
     path = trial_path(broad_dir, name)
-    session = import_broad(path)
-    t0, t1 = broad_movement_span(path)
-    session = trim(session, max(session.t_gyro_s[0], t0 - MARGIN_S), min(session.t_gyro_s[-1], t1 + MARGIN_S))
+    session = import_broad_movement(path, MARGIN_S)
     t_s = session.t_gyro_s
     if not np.array_equal(t_s, session.t_mag_s):
         sys.exit(f"{path}: gyro and magnetometer are not on one time base")

@@ -25,7 +25,7 @@ import numpy as np
 
 from magyro.calibrate import Options, calibrate
 from magyro.errors import MagyroError
-from magyro.importers import broad_movement_span, import_broad, trim
+from magyro.importers import import_broad_movement
 from magyro.validate import validate
 
 DEFAULT_TRIALS = "02,03,05,07,09,21,30,32,34,36"
@@ -41,14 +41,8 @@ def trial_path(broad: Path, trial: str) -> Path:
     return found[0]
 
 
-def trimmed_trial(path: Path):
-    session = import_broad(path)
-    t0, t1 = broad_movement_span(path)
-    return trim(session, max(session.t_gyro_s[0], t0 - MARGIN_S), min(session.t_gyro_s[-1], t1 + MARGIN_S))
-
-
 def run_trial(path: Path, split_check: bool) -> dict:
-    session = trimmed_trial(path)
+    session = import_broad_movement(path, MARGIN_S)
     t_start = time.perf_counter()
     try:
         cal = calibrate(session, Options(split_check=split_check))

@@ -214,13 +214,10 @@ def import_broad_command(
     decimate_by: int = typer.Option(1, "--decimate", min=1, help="Keep every N-th sample (no filtering)."),
 ):
     """A BROAD benchmark trial: gyro, magnetometer (uT), accelerometer, optical truth as qw qx qy qz."""
-    from .importers import BROAD_CITATION, broad_movement_span, decimate, import_broad, trim
+    from .importers import BROAD_CITATION, decimate, import_broad, import_broad_movement
 
     def action():
-        s = import_broad(trial)
-        if movement:
-            t0, t1 = broad_movement_span(trial)
-            s = trim(s, t0 - rest_s, t1 + rest_s)
+        s = import_broad_movement(trial, rest_s) if movement else import_broad(trial)
         s = decimate(_cut(s, start, end), decimate_by)
         _write_imported(s, output)
         n_truth = 0 if s.t_quat_s is None else len(s.t_quat_s)

@@ -175,15 +175,19 @@ def _read_hdf5(path: Path) -> dict:
         raise InputError(f"{path}: cannot be read as HDF5 ({io.one_line(exc)})") from None
 
 
+def import_broad_movement(path, margin_s: float) -> Session:
+    """A BROAD trial cut to its marked movement span +/- `margin_s` seconds of the rests."""
+    t0_s, t1_s = broad_movement_span(path)
+    return trim(import_broad(path), t0_s - margin_s, t1_s + margin_s)
+
+
 def convert_broad(path, output, rest_s: float = 3.0, decimate_by: int = 1,
                   compression: str = "zstd", compression_level: int | None = 19) -> Session:
     """A BROAD trial cut to its movement span +/- `rest_s`, every `decimate_by`-th sample, written.
 
     This is how `data/broad-*.parquet` were made (see data/PROVENANCE.md).
     """
-    session = import_broad(path)
-    t0_s, t1_s = broad_movement_span(path)
-    session = trim(session, t0_s - rest_s, t1_s + rest_s)
+    session = import_broad_movement(path, rest_s)
     if decimate_by > 1:
         session = decimate(session, decimate_by)
     write_session_parquet(session, output, compression=compression, compression_level=compression_level)

@@ -14,7 +14,7 @@ import scipy.linalg
 
 from magyro import so3
 from magyro.calibrate import Options, calibrate
-from magyro.importers import broad_movement_span, import_broad, trim
+from magyro.importers import import_broad_movement
 from magyro.io import load_session
 from magyro.result import misalignment_vector
 from magyro.simulate import load_problem, simulate
@@ -303,8 +303,7 @@ def test_ignoring_the_lag_costs_accuracy(lagged):
 
 
 def broad_trimmed(path: Path):
-    t0, t1 = broad_movement_span(path)
-    return trim(import_broad(path), t0 - BROAD_MARGIN_S, t1 + BROAD_MARGIN_S)
+    return import_broad_movement(path, BROAD_MARGIN_S)
 
 
 @pytest.fixture(scope="module")
