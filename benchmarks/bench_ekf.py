@@ -22,8 +22,8 @@ import statistics
 import time
 
 from magyro import ekf
-from magyro.calibrate import Options, prepare
-from magyro.simulate import load_problem, simulate
+from magyro.nls.solve import Options, prepare
+from magyro.studies.simulate import load_problem, simulate
 
 SEED = 0
 

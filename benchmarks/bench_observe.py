@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from magyro import simulate as sim
-from magyro.io import write_session
+from magyro.studies import simulate as sim
+from magyro.io.sessions import write_session
 
 PROBLEM = "paper-table1"
 SEED = 0
@@ -64,7 +64,7 @@ def observe_process_s(session: Path, report: Path, repeat: int, env: dict | None
 
 
 def observe_call_s(session_obj, repeat: int) -> tuple[list[float], list[float]]:
-    from magyro.observe import observe
+    from magyro.observability.report import observe
 
     total, prediction = [], []
     for _ in range(repeat):
@@ -80,7 +80,7 @@ def flat_std(std: dict) -> np.ndarray:
 
 
 def stride_study(session_obj, repeat: int) -> list[dict]:
-    from magyro.calibrate import Options, predicted_std, prepare
+    from magyro.nls.solve import Options, predicted_std, prepare
 
     prep = prepare(session_obj, Options())
     rows, reference = [], None

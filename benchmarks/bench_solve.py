@@ -21,8 +21,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from magyro import simulate as sim
-from magyro.io import write_session
+from magyro.studies import simulate as sim
+from magyro.io.sessions import write_session
 
 PROBLEM = "paper-table1"
 SEED = 0

@@ -23,7 +23,7 @@ Each trial is cut to the movement span the benchmark marks, +/- 10 s.
    Standard deviations come from the Jacobian, scaled by the residual variance. Windows
    inside the rests at the ends are left out (`--include-rests` keeps them), so the bias is
    the bias during motion; it is compared with the rest mean, -K_g mean(y_rest), over the
-   rests `magyro.calibrate.moving_session` finds (as magyro's rest check defines it).
+   rests `magyro.nls.solve.moving_session` finds (as magyro's rest check defines it).
 2. Magnetometer. y(t) = A C_t(t - tau_s)^T m + h, m a unit vector (ENU). For fixed (m, tau)
    A and h are a linear least squares (solved from precomputed normal equations); m is found
    by Nelder-Mead from a coarse grid, tau by a bounded 1-D search on [0, 40] ms.
@@ -59,9 +59,9 @@ import scipy.sparse
 from scipy.optimize import least_squares, minimize, minimize_scalar
 
 from magyro import so3
-from magyro.calibrate import Options, moving_session
-from magyro.importers import import_broad_movement
-from magyro.result import qr_split
+from magyro.nls.solve import Options, moving_session
+from magyro.io.importers import import_broad_movement
+from magyro.result.calibration import qr_split
 from magyro.session import Session
 
 REPO = Path(__file__).resolve().parents[1]
@@ -234,7 +234,7 @@ def rests_and_moving_span(trial: Trial):
 
 
 def rest_bias_rad_s(rests, K_g: np.ndarray) -> np.ndarray:
-    """The bias the rests imply, -K_g mean(y_rest) (magyro.calibrate.rest_check); NaN without rests."""
+    """The bias the rests imply, -K_g mean(y_rest) (magyro.nls.solve.rest_check); NaN without rests."""
     if rests.gyro_mean_rad_s is None:
         return np.full(3, np.nan)
     return -K_g @ rests.gyro_mean_rad_s
@@ -571,7 +571,7 @@ def ideal_magnetometer_session(trial: Trial, mag: dict, seed: int = 0) -> Sessio
 
 def magyro_ideal(trial: Trial, ref: dict) -> dict:
     """magyro's gyro estimates on the ideal-magnetometer session, with their std."""
-    from magyro.calibrate import calibrate
+    from magyro.nls.solve import calibrate
 
     cal = calibrate(ideal_magnetometer_session(trial, ref["mag"]), Options())
     std = cal.std

@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from magyro.calibrate import Options, calibrate
+from magyro.nls.solve import Options, calibrate
 from magyro.errors import MagyroError
-from magyro.importers import import_broad_movement
-from magyro.validate import validate
+from magyro.io.importers import import_broad_movement
+from magyro.studies.dead_reckoning import validate
 
 DEFAULT_TRIALS = "02,03,05,07,09,21,30,32,34,36"
 DAY_B = ("02", "05", "07", "09")

@@ -2,11 +2,11 @@
 
     python benchmarks/predicted_vs_actual.py [--problem paper-table1] [--runs 30] [--jobs 1] [--out result.json]
 
-1. Simulates the problem with noise seed 0 and runs `magyro.observe.observe` on it:
+1. Simulates the problem with noise seed 0 and runs `magyro.observability.report.observe` on it:
    its `predicted_std` is the prediction, made before any solve (the node stride
    observe uses for it is printed; the stride-1 prediction is shown beside it).
 2. Simulates the same problem with noise seeds 1..N and calibrates each with
-   `magyro.calibrate.calibrate` (what `magyro solve` runs). The sample standard
+   `magyro.nls.solve.calibrate` (what `magyro solve` runs). The sample standard
    deviation of each gyro parameter across the N estimates is the actual spread.
    The misalignment is d with C_b_m(true) = C_b_m(est) Exp(d), in degrees (SPEC).
 3. Prints one row per gyro parameter: predicted, actual, ratio predicted/actual,
@@ -49,9 +49,9 @@ def gyro_vector_from_std(std: dict) -> np.ndarray:
 
 def one_run(problem_name: str, seed: int) -> dict:
     """Solve one seeded session; the gyro estimates (misalignment as d against the truth) and reported std."""
-    from magyro.calibrate import calibrate
-    from magyro.result import misalignment_vector
-    from magyro.simulate import load_problem, simulate
+    from magyro.nls.solve import calibrate
+    from magyro.result.calibration import misalignment_vector
+    from magyro.studies.simulate import load_problem, simulate
 
     session, truth = simulate(load_problem(problem_name), seed)
     start = time.perf_counter()
@@ -64,9 +64,9 @@ def one_run(problem_name: str, seed: int) -> dict:
 
 def prediction(problem_name: str) -> tuple[np.ndarray, np.ndarray, dict]:
     """(observe's predicted std, the stride-1 predicted std, observe's prediction info), seed 0."""
-    from magyro.calibrate import Options, predicted_std, prepare
-    from magyro.observe import observe
-    from magyro.simulate import load_problem, simulate
+    from magyro.nls.solve import Options, predicted_std, prepare
+    from magyro.observability.report import observe
+    from magyro.studies.simulate import load_problem, simulate
 
     session, _ = simulate(load_problem(problem_name), 0)
     report = observe(session)

@@ -17,8 +17,8 @@ from typing import List, Optional
 import numpy as np
 import typer
 
-from . import __version__
-from .errors import MagyroError
+from magyro import __version__
+from magyro.errors import MagyroError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, help="Gyroscope calibration via the magnetometer (Wu & Pei).")
 
@@ -78,9 +78,9 @@ def solve(
 
     --stride, --loss, --time-offset and --split-check apply to the nls method only.
     """
-    from .calibrate import Options, calibrate
-    from .errors import InputError
-    from .io import load_session, write_text_atomically
+    from magyro.nls.solve import Options, calibrate
+    from magyro.errors import InputError
+    from magyro.io.sessions import load_session, write_text_atomically
 
     def action():
         s = load_session(session, gyro_unit=gyro_unit, mag_unit=mag_unit)
@@ -96,7 +96,7 @@ def solve(
         if method == "nls" and (history is not None or history_plot is not None):
             raise InputError("--history and --history-plot need --method ekf (the least squares has no estimate over time)")
         if method == "ekf":
-            from .ekf import ekf_calibrate, plot_history
+            from magyro.ekf.filter import ekf_calibrate, plot_history
 
             cal, hist = ekf_calibrate(s, opts)
             if history is not None:
@@ -122,8 +122,8 @@ def simulate(
     seed: int = typer.Option(0, "--seed", help="Noise seed (the motion is fixed by the problem)."),
 ):
     """A simulated session and its true parameters from a problem file."""
-    from . import simulate as sim
-    from .io import write_session
+    from magyro.studies import simulate as sim
+    from magyro.io.sessions import write_session
 
     def action():
         prob = sim.load_problem(problem)
@@ -157,8 +157,8 @@ def montecarlo(
     listed with their seed and message, and the table of the successful ones is
     still printed and written.
     """
-    from . import montecarlo as mc
-    from .simulate import load_problem
+    from magyro.studies import montecarlo as mc
+    from magyro.studies.simulate import load_problem
 
     def action():
         prob = load_problem(problem)
@@ -186,8 +186,8 @@ app.add_typer(import_app, name="import")
 
 def _write_imported(s, output: Path) -> None:
     """Parquet with zstd (metadata kept), or CSV by suffix."""
-    from .importers import write_session_parquet
-    from .io import PARQUET_SUFFIXES, write_session
+    from magyro.io.importers import write_session_parquet
+    from magyro.io.sessions import PARQUET_SUFFIXES, write_session
 
     if output.suffix.lower() in PARQUET_SUFFIXES:
         write_session_parquet(s, output)
@@ -196,7 +196,7 @@ def _write_imported(s, output: Path) -> None:
 
 
 def _cut(s, start: Optional[float], end: Optional[float]):
-    from .importers import trim
+    from magyro.io.importers import trim
 
     if start is None and end is None:
         return s
@@ -214,7 +214,7 @@ def import_broad_command(
     decimate_by: int = typer.Option(1, "--decimate", min=1, help="Keep every N-th sample (no filtering)."),
 ):
     """A BROAD benchmark trial: gyro, magnetometer (uT), accelerometer, optical truth as qw qx qy qz."""
-    from .importers import BROAD_CITATION, decimate, import_broad, import_broad_movement
+    from magyro.io.importers import BROAD_CITATION, decimate, import_broad, import_broad_movement
 
     def action():
         s = import_broad_movement(trial, rest_s) if movement else import_broad(trial)
@@ -242,8 +242,8 @@ def import_csv_command(
     end: Optional[float] = typer.Option(None, "--end", help="Drop samples after this time (s)."),
 ):
     """A phone or logger CSV export, with column and unit mapping, as a session file."""
-    from .errors import InputError
-    from .importers import import_csv
+    from magyro.errors import InputError
+    from magyro.io.importers import import_csv
 
     def action():
         mapping = {}
@@ -276,8 +276,8 @@ def validate_command(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
 ):
     """Dead-reckon with the raw and the calibrated gyro: error against truth, or closure drift."""
-    from .io import load_session, write_text_atomically
-    from .validate import plot_validation, validate as run_validation
+    from magyro.io.sessions import load_session, write_text_atomically
+    from magyro.studies.dead_reckoning import plot_validation, validate as run_validation
 
     def action():
         s = load_session(session, gyro_unit=gyro_unit, mag_unit=mag_unit)
@@ -315,9 +315,9 @@ def observe_command(
     Exit 0 when the excitation is sufficient or marginal, 3 when insufficient (the
     report is still printed and written), 2 when the input is unusable.
     """
-    from .calibrate import Options
-    from .io import load_session, write_text_atomically
-    from .observe import Targets, observe, plot_report, require_matplotlib
+    from magyro.nls.solve import Options
+    from magyro.io.sessions import load_session, write_text_atomically
+    from magyro.observability.report import Targets, observe, plot_report, require_matplotlib
 
     def action():
         if plot is not None:

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from magyro.calibrate import calibrate
-from magyro.io import load_session, write_session
-from magyro.simulate import load_problem, simulate
+from magyro.nls.solve import calibrate
+from magyro.io.sessions import load_session, write_session
+from magyro.studies.simulate import load_problem, simulate
 
 PAPER_SEEDS = (11, 12)
 PHONE_SEEDS = (11, 12)

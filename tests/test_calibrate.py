@@ -10,8 +10,8 @@ import json
 import numpy as np
 import pytest
 
-from magyro.result import SCHEMA, misalignment_vector
-from magyro.simulate import load_problem
+from magyro.result.calibration import SCHEMA, misalignment_vector
+from magyro.studies.simulate import load_problem
 
 pytestmark = pytest.mark.slow  # every test here needs a solve (shared, but the first user pays)
 

@@ -13,10 +13,10 @@ import pytest
 
 import magyro
 from magyro import so3
-from magyro.calibrate import Options, prepare
+from magyro.nls.solve import Options, prepare
 from magyro.errors import InputError
-from magyro.io import MAX_PLAUSIBLE_RATE_RAD_S, MIN_SAMPLES, load_session, write_session
-from magyro.simulate import load_problem, simulate
+from magyro.io.sessions import MAX_PLAUSIBLE_RATE_RAD_S, MIN_SAMPLES, load_session, write_session
+from magyro.studies.simulate import load_problem, simulate
 
 SEED = 1
 

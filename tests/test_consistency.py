@@ -7,11 +7,13 @@ import json
 import numpy as np
 import pytest
 
-from magyro import consistency, so3
-from magyro.calibrate import Options, calibrate, moving_session
+from magyro.result import consistency
+
+from magyro import so3
+from magyro.nls.solve import Options, calibrate, moving_session
 from magyro.errors import ObservabilityError
-from magyro.io import write_session
-from magyro.simulate import load_problem, simulate
+from magyro.io.sessions import write_session
+from magyro.studies.simulate import load_problem, simulate
 
 pytestmark = pytest.mark.slow  # three solves per session
 

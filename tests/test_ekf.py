@@ -7,11 +7,12 @@ import copy
 import numpy as np
 import pytest
 
-from magyro import ekf, magfit, so3
-from magyro.calibrate import Options, prepare
+from magyro import ekf, so3
+from magyro.front import ellipsoid
+from magyro.nls.solve import Options, prepare
 from magyro.errors import InputError
-from magyro.result import UPPER
-from magyro.simulate import load_problem, simulate
+from magyro.result.calibration import UPPER
+from magyro.studies.simulate import load_problem, simulate
 
 # Table I of the paper, 3 sigma
 TABLE1_SCALE = 900e-6
@@ -273,7 +274,7 @@ def test_streaming_rejects_time_going_backwards():
 def test_newton_refinement_reduces_the_norm_residual_with_hard_and_soft_iron():
     problem = load_problem("phone-module")
     session, _ = simulate(problem, 1)
-    fit = magfit.fit_ellipsoid(session.mag, problem.mag_noise_std)
+    fit = ellipsoid.fit_ellipsoid(session.mag, problem.mag_noise_std)
     plain = ekf.refine_magnetometer(session.mag, fit.R, fit.h)
     assert plain.cost < plain.cost_initial
     assert plain.rms_norm_error < fit.rms_norm_error
@@ -289,7 +290,7 @@ def test_plain_newton_is_biased_on_part_of_the_sphere_and_the_corrected_score_is
     """paper-table1's field covers a cap: sum (|R(y-h)|^2 - 1)^2 drifts along the cap's weak direction."""
     problem = load_problem("paper-table1")
     session, _ = simulate(problem, 1)
-    fit = magfit.fit_ellipsoid(session.mag, problem.mag_noise_std)
+    fit = ellipsoid.fit_ellipsoid(session.mag, problem.mag_noise_std)
 
     def zscores(ref):
         e = np.concatenate([[(ref.R - problem.R)[i, j] for i, j in UPPER], ref.h - problem.hard_iron])

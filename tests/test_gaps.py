@@ -11,9 +11,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from magyro.calibrate import calibrate, default_stride
-from magyro.problem import build_grid, segment_starts
-from magyro.simulate import load_problem, simulate
+from magyro.nls.solve import calibrate, default_stride
+from magyro.nls.problem import build_grid, segment_starts
+from magyro.studies.simulate import load_problem, simulate
 
 from test_calibrate import check_gyro_recovery
 

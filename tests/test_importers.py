@@ -9,13 +9,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from magyro import importers
+from magyro.io import importers
 from magyro.errors import InputError
-from magyro.importers import (broad_movement_span, decimate, guess_column_map, import_broad, import_csv, trim,
+from magyro.io.importers import (broad_movement_span, decimate, guess_column_map, import_broad, import_csv, trim,
                               write_session_parquet)
-from magyro.io import MIN_SAMPLES, load_session, write_session
+from magyro.io.sessions import MIN_SAMPLES, load_session, write_session
 from magyro.session import Session
-from magyro.simulate import load_problem, simulate
+from magyro.studies.simulate import load_problem, simulate
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "data"

@@ -9,9 +9,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from magyro import io
+from magyro.io import sessions
 from magyro.errors import InputError
-from magyro.io import (MAX_PLAUSIBLE_RATE_RAD_S, MIN_SAMPLES, load_session, write_session,
+from magyro.io.sessions import (MAX_PLAUSIBLE_RATE_RAD_S, MIN_SAMPLES, load_session, write_session,
                        write_text_atomically)
 from magyro.session import Session
 
@@ -450,7 +450,7 @@ def test_failure_mid_write_leaves_no_partial_file(tmp_path, monkeypatch):
             f.write(b"PAR1 partial")
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(io.pq, "write_table", half_then_fail)
+    monkeypatch.setattr(sessions.pq, "write_table", half_then_fail)
     with pytest.raises(RuntimeError, match="disk full"):
         write_session(s, target)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.csv"]
@@ -479,8 +479,8 @@ def test_the_solve_path_imports_neither_pandas_nor_scipy():
     from pathlib import Path
 
     shipped = Path(__file__).resolve().parents[1] / "data" / "broad-02.parquet"
-    code = ("import sys, magyro.cli, magyro.calibrate, magyro.consistency, magyro.io; "
-            f"magyro.io.load_session({str(shipped)!r}); "
+    code = ("import sys, magyro.cli, magyro.nls.solve, magyro.result.consistency, magyro.io.sessions; "
+            f"magyro.io.sessions.load_session({str(shipped)!r}); "
             "print(sorted(m for m in ('pandas', 'scipy', 'pyarrow.compute') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]", out.stdout

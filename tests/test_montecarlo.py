@@ -16,13 +16,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from magyro import montecarlo as mc
-from magyro.calibrate import Options
-from magyro.crlb import cramer_rao_std, moving_part
+from magyro.studies import montecarlo as mc
+from magyro.nls.solve import Options
+from magyro.studies.crlb import cramer_rao_std, moving_part
 from magyro.errors import InputError, ObservabilityError, SolverError
-from magyro.problem import build_grid
-from magyro.result import UPPER
-from magyro.simulate import field_i, load_problem, simulate, truth_attitude
+from magyro.nls.problem import build_grid
+from magyro.result.calibration import UPPER
+from magyro.studies.simulate import field_i, load_problem, simulate, truth_attitude
 
 PROBLEM = "short-30s"
 RUNS = 4
@@ -140,7 +140,7 @@ def test_crlb_agrees_with_the_observed_spread(small):
 
 def test_euler_crlb_uses_the_crlb_covariance(small, problem):
     """crlb_covariance is cramer_rao_std before the diagonal: the same std, so the Euler rows are consistent."""
-    from magyro.result import REPORTED
+    from magyro.result.calibration import REPORTED
 
     session, _ = simulate(problem, SEED0)
     cov = mc.crlb_covariance(problem, session, Options())

@@ -13,10 +13,10 @@ import re
 import numpy as np
 import pytest
 
-from magyro.calibrate import Options, calibrate, prepare
+from magyro.nls.solve import Options, calibrate, prepare
 from magyro.errors import ObservabilityError
-from magyro.io import write_session
-from magyro.simulate import load_problem, simulate
+from magyro.io.sessions import write_session
+from magyro.studies.simulate import load_problem, simulate
 
 SEED = 11
 # problem -> (rank the theorem predicts, gyro axes the motion turns)

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from magyro.errors import InputError
-from magyro.io import write_session
-from magyro.observe import (CANONICAL, SCHEMA, SPHERE_BANDS, SPHERE_SECTORS, Targets, canonical_reports,
+from magyro.io.sessions import write_session
+from magyro.observability.report import (CANONICAL, SCHEMA, SPHERE_BANDS, SPHERE_SECTORS, Targets, canonical_reports,
                             canonical_table, judge, plot_report, sphere_cell, table_in_page)
-from magyro.simulate import load_problem, motion_factors, simulate
+from magyro.studies.simulate import load_problem, motion_factors, simulate
 
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "observability.md"
 THEOREM = {name: rank for name, _, rank in CANONICAL}

@@ -13,12 +13,12 @@ import pytest
 import scipy.linalg
 
 from magyro import so3
-from magyro.calibrate import Options, calibrate
-from magyro.importers import import_broad_movement
-from magyro.io import load_session
-from magyro.result import misalignment_vector
-from magyro.simulate import load_problem, simulate
-from magyro.validate import validate
+from magyro.nls.solve import Options, calibrate
+from magyro.io.importers import import_broad_movement
+from magyro.io.sessions import load_session
+from magyro.result.calibration import misalignment_vector
+from magyro.studies.simulate import load_problem, simulate
+from magyro.studies.dead_reckoning import validate
 
 REPO = Path(__file__).resolve().parents[1]
 BROAD_02_SHIPPED = REPO / "data" / "broad-02.parquet"

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from magyro import so3
-from magyro.calibrate import calibrate
+from magyro.nls.solve import calibrate
 from magyro.errors import InputError
-from magyro.io import write_session
-from magyro.result import misalignment_vector, qr_split
-from magyro.simulate import load_problem, simulate
+from magyro.io.sessions import write_session
+from magyro.result.calibration import misalignment_vector, qr_split
+from magyro.studies.simulate import load_problem, simulate
 
 MIRROR_Z = np.diag([1.0, 1.0, -1.0])
 N_RANDOM = 300

@@ -10,7 +10,7 @@ import pytest
 
 from magyro import so3
 from magyro.errors import InputError
-from magyro.simulate import (
+from magyro.studies.simulate import (
     PROBLEMS_DIR,
     field_i,
     load_problem,

@@ -10,10 +10,10 @@ import pytest
 
 from magyro import so3
 from magyro.errors import InputError
-from magyro.importers import trim
-from magyro.io import load_session
-from magyro.simulate import load_problem, simulate, truth_body_attitude
-from magyro.validate import attitude_at, plot_validation, validate
+from magyro.io.importers import trim
+from magyro.io.sessions import load_session
+from magyro.studies.simulate import load_problem, simulate, truth_body_attitude
+from magyro.studies.dead_reckoning import attitude_at, plot_validation, validate
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 

@@ -59,11 +59,13 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from . import __version__, so3
-from .errors import InputError
-from .io import one_line
-from .result import UPPER, misalignment_vector
-from .simulate import Problem, simulate
+from magyro import __version__
+
+from magyro import so3
+from magyro.errors import InputError
+from magyro.io.sessions import one_line
+from magyro.result.calibration import UPPER, misalignment_vector
+from magyro.studies.simulate import Problem, simulate
 
 SCHEMA = "magyro.montecarlo/1"
 METHODS = ("nls", "ekf")
@@ -182,7 +184,7 @@ def matches_paper(problem: Problem) -> bool:
 def crlb_covariance(problem: Problem, session, options) -> np.ndarray:
     """Covariance of the reported vector (result.REPORTED layout) at truth: the Euler-angle CRLB needs the
     3x3 covariance of d, not only its diagonal."""
-    from .crlb import cramer_rao_covariance
+    from magyro.studies.crlb import cramer_rao_covariance
 
     return cramer_rao_covariance(problem, session, options)
 
@@ -199,7 +201,7 @@ def euler_jacobian_deg_per_rad(C: np.ndarray, step: float = 1e-6) -> np.ndarray:
 
 def euler_crlb_deg(problem: Problem, session, options) -> np.ndarray:
     """CRLB one-sigma of [roll, pitch, yaw] of C_b^m, deg: J cov(d) J^T with d in rad."""
-    from .result import REPORTED
+    from magyro.result.calibration import REPORTED
 
     cov = crlb_covariance(problem, session, options)
     sl = REPORTED["misalignment_deg"]
@@ -210,7 +212,7 @@ def euler_crlb_deg(problem: Problem, session, options) -> np.ndarray:
 
 def _crlb_task(problem: Problem, seed: int, options) -> dict:
     """The CRLB rows at `seed`'s session, or the reason there is none."""
-    from .crlb import cramer_rao_std
+    from magyro.studies.crlb import cramer_rao_std
 
     t0 = time.perf_counter()
     try:
@@ -226,7 +228,7 @@ def _crlb_task(problem: Problem, seed: int, options) -> dict:
 
 
 def solve_nls(session, options):
-    from .calibrate import calibrate
+    from magyro.nls.solve import calibrate
 
     return calibrate(session, options)
 
@@ -240,12 +242,12 @@ SOLVERS: dict[str, Callable] = {"nls": solve_nls, "ekf": solve_ekf}
 
 
 def _ekf_function():
-    """magyro.ekf.ekf_calibrate, or InputError when that module is not there (yet)."""
+    """magyro.ekf.filter.ekf_calibrate, or InputError when that module is not there (yet)."""
     try:
         module = importlib.import_module("magyro.ekf")
         return module.ekf_calibrate
     except (ImportError, AttributeError):
-        raise InputError("method ekf is not available yet (magyro.ekf.ekf_calibrate is missing)") from None
+        raise InputError("method ekf is not available yet (magyro.ekf.filter.ekf_calibrate is missing)") from None
 
 
 def parse_methods(method: str | Sequence[str]) -> list[str]:
@@ -691,7 +693,7 @@ def run_montecarlo(problem: Problem, runs: int, jobs: int = 1, method: str | Seq
     `progress(done, runs, outcomes)` is called as each seed finishes, with that
     seed's list of Outcome (one per method).
     """
-    from .calibrate import Options
+    from magyro.nls.solve import Options
 
     if not isinstance(runs, (int, np.integer)) or runs < 1:
         raise InputError(f"--runs must be a positive integer, got {runs!r}")
@@ -763,7 +765,7 @@ def run_montecarlo(problem: Problem, runs: int, jobs: int = 1, method: str | Seq
 
 def write_outputs(result: MonteCarloResult, json_path=None, csv_path=None) -> None:
     """The JSON (schema magyro.montecarlo/1) and the CSV table, each written whole or not at all."""
-    from .io import write_text_atomically
+    from magyro.io.sessions import write_text_atomically
 
     if json_path is not None:
         write_text_atomically(json_path, result.to_json() + "\n")

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .calibrate import Options, default_stride, information_covariance, moving_session
-from .result import std_from_covariance
-from .problem import JointProblem, Linearisation, build_grid
-from .session import Session
-from .simulate import Problem, field_i, truth_attitude
+from magyro.nls.solve import Options, default_stride, information_covariance, moving_session
+from magyro.result.calibration import std_from_covariance
+from magyro.nls.problem import JointProblem, Linearisation, build_grid
+from magyro.session import Session
+from magyro.studies.simulate import Problem, field_i, truth_attitude
 
 
 def truth_linearisation(problem: Problem, t_node_s: np.ndarray) -> Linearisation:

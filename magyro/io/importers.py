@@ -10,9 +10,9 @@
   mg) and maps it onto the SPEC columns.
 - `trim(session, t0_s, t1_s)` and `decimate(session, n)` cut a session in time.
 - `write_session_parquet(session, path, compression="zstd")` writes the SPEC table like
-  `io.write_session`, with a chosen Parquet compression.
+  `sessions.write_session`, with a chosen Parquet compression.
 
-Whatever is imported goes through the same validation as `io.load_session` (strictly
+Whatever is imported goes through the same validation as `sessions.load_session` (strictly
 increasing time, finite values, whole sensor groups, plausible gyro rates, enough samples),
 so an imported session is exactly what loading its written file gives back.
 """
@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import io
-from .errors import InputError
-from .session import Session
+from magyro.io import sessions
+from magyro.errors import InputError
+from magyro.session import Session
 
 # --------------------------------------------------------------------------- BROAD
 
@@ -53,16 +53,16 @@ def import_broad(path) -> Session:
     rate_hz = arrays["sampling_rate"]
     n = len(arrays["imu_gyr"])
     t_s = np.arange(n) / rate_hz
-    table = pd.DataFrame({io.TIME_COLUMN: t_s})
-    for names, key in ((io.GYRO_COLUMNS, "imu_gyr"), (io.MAG_COLUMNS, "imu_mag"),
-                       (io.ACC_COLUMNS, "imu_acc"), (io.QUAT_COLUMNS, "opt_quat")):
+    table = pd.DataFrame({sessions.TIME_COLUMN: t_s})
+    for names, key in ((sessions.GYRO_COLUMNS, "imu_gyr"), (sessions.MAG_COLUMNS, "imu_mag"),
+                       (sessions.ACC_COLUMNS, "imu_acc"), (sessions.QUAT_COLUMNS, "opt_quat")):
         if key in arrays:
             for k, name in enumerate(names):
                 table[name] = arrays[key][:, k]
     if "opt_quat" in arrays:
         # a lost marker sometimes leaves a partial row: a truth sample is whole or absent
-        q = table[list(io.QUAT_COLUMNS)].to_numpy()
-        table.loc[~np.isfinite(q).all(axis=1), list(io.QUAT_COLUMNS)] = np.nan
+        q = table[list(sessions.QUAT_COLUMNS)].to_numpy()
+        table.loc[~np.isfinite(q).all(axis=1), list(sessions.QUAT_COLUMNS)] = np.nan
     movement = arrays.get("movement")
     metadata = {
         "source": f"{BROAD_SOURCE}, file {path.name}",
@@ -158,7 +158,7 @@ def _read_mat(path: Path) -> dict:
     except NotImplementedError:  # MATLAB v7.3 files are HDF5
         return _read_hdf5(path)
     except Exception as exc:
-        raise InputError(f"{path}: cannot be read as a MATLAB file ({io.one_line(exc)})") from None
+        raise InputError(f"{path}: cannot be read as a MATLAB file ({sessions.one_line(exc)})") from None
     return {k: v for k, v in raw.items() if not k.startswith("__")}
 
 
@@ -172,7 +172,7 @@ def _read_hdf5(path: Path) -> dict:
         with h5py.File(path, "r") as f:
             return {k: f[k][()] for k in f.keys() if isinstance(f[k], h5py.Dataset)}
     except OSError as exc:
-        raise InputError(f"{path}: cannot be read as HDF5 ({io.one_line(exc)})") from None
+        raise InputError(f"{path}: cannot be read as HDF5 ({sessions.one_line(exc)})") from None
 
 
 def import_broad_movement(path, margin_s: float) -> Session:
@@ -209,8 +209,8 @@ MAG_UNITS = {"ut": "uT", "µt": "uT", "μt": "uT", "microtesla": "uT", "nt": "nT
              "counts": "counts", "count": "counts", "lsb": "counts", "raw": "counts", "adc": "counts",
              "a.u.": "a.u.", "au": "a.u.", "arb": "a.u.", "unitless": "unitless", "1": "unitless",
              "unknown": "unknown"}
-SPEC_OPTIONAL_GROUPS = (io.ACC_COLUMNS, io.QUAT_COLUMNS)
-SPEC_NAMES = (*io.REQUIRED_COLUMNS, *io.ACC_COLUMNS, *io.QUAT_COLUMNS)
+SPEC_OPTIONAL_GROUPS = (sessions.ACC_COLUMNS, sessions.QUAT_COLUMNS)
+SPEC_NAMES = (*sessions.REQUIRED_COLUMNS, *sessions.ACC_COLUMNS, *sessions.QUAT_COLUMNS)
 MIN_PLAUSIBLE_STEP_S = 1e-5   # 100 kHz
 MAX_PLAUSIBLE_STEP_S = 1.0    # 1 Hz
 
@@ -255,7 +255,7 @@ def _candidate_keys(column: str) -> set[str]:
     keys = set()
     for v in variants:
         if v in _TIME_NAMES:
-            keys.add(io.TIME_COLUMN)
+            keys.add(sessions.TIME_COLUMN)
         if v in ("qw", "qx", "qy", "qz"):
             keys.add(v)
         if len(v) >= 2 and v[-1] in "xyz" and v[:-1] in _AXIS_PREFIXES["g"] + _AXIS_PREFIXES["m"] + _AXIS_PREFIXES["a"]:
@@ -286,17 +286,17 @@ def import_csv(path, column_map: dict | None, gyro_unit: str, mag_unit: str,
     raw = _read_csv_any_delimiter(path, delimiter)
     mapping = _resolve_column_map(path, raw, column_map)
 
-    t_raw = _time_values(path, raw[mapping[io.TIME_COLUMN]], mapping[io.TIME_COLUMN])
-    table = pd.DataFrame({io.TIME_COLUMN: t_raw})
+    t_raw = _time_values(path, raw[mapping[sessions.TIME_COLUMN]], mapping[sessions.TIME_COLUMN])
+    table = pd.DataFrame({sessions.TIME_COLUMN: t_raw})
     for name, source in mapping.items():
-        if name != io.TIME_COLUMN:
+        if name != sessions.TIME_COLUMN:
             table[name] = _numbers(path, raw[source], source)
-    for name in io.ACC_COLUMNS:
+    for name in sessions.ACC_COLUMNS:
         if name in table:
             table[name] = table[name] * acc_scale
     table = _merge_rows(path, table)
-    t_first = table[io.TIME_COLUMN].iloc[0]
-    table[io.TIME_COLUMN] = (table[io.TIME_COLUMN] - t_first).astype(float) * time_scale
+    t_first = table[sessions.TIME_COLUMN].iloc[0]
+    table[sessions.TIME_COLUMN] = (table[sessions.TIME_COLUMN] - t_first).astype(float) * time_scale
     _check_time_unit(path, table, time_unit)
 
     metadata = {
@@ -317,7 +317,7 @@ def _canonical_key(unit: str) -> str:
 
 def _gyro_unit(path: Path, unit: str) -> str:
     try:
-        return io.canonical_gyro_unit(unit, "--gyro-unit")
+        return sessions.canonical_gyro_unit(unit, "--gyro-unit")
     except InputError as exc:
         raise InputError(f"{path}: {exc}") from None
 
@@ -353,7 +353,7 @@ def _sniff_delimiter(path: Path) -> str:
 
 
 def _read_csv_any_delimiter(path: Path, delimiter: str | None) -> pd.DataFrame:
-    io.check_file_exists(path)
+    sessions.check_file_exists(path)
     with open(path, "rb") as f:
         if b"\x00" in f.read(8192):
             raise InputError(f"{path}: binary data, not a CSV text file")
@@ -365,7 +365,7 @@ def _read_csv_any_delimiter(path: Path, delimiter: str | None) -> pd.DataFrame:
     except UnicodeDecodeError:
         raise InputError(f"{path}: not UTF-8 text; save the export as UTF-8 CSV") from None
     except Exception as exc:
-        raise InputError(f"{path}: cannot be read as CSV ({io.one_line(exc)})") from None
+        raise InputError(f"{path}: cannot be read as CSV ({sessions.one_line(exc)})") from None
     table.columns = [str(c).strip() for c in table.columns]
     if len(table) == 0:
         raise InputError(f"{path}: the file has a header but no data rows")
@@ -408,7 +408,7 @@ def _resolve_column_map(path: Path, raw: pd.DataFrame, column_map: dict | None) 
                                  f"{' '.join(group)} or none")
             for c in present:  # a partial guess is no guess
                 del mapping[c]
-    missing = [c for c in io.REQUIRED_COLUMNS if c not in mapping]
+    missing = [c for c in sessions.REQUIRED_COLUMNS if c not in mapping]
     if missing:
         raise InputError(f"{path}: no column for {', '.join(missing)}; found columns: {_shown(found)}. "
                          f"Map them, e.g. --map {missing[0]}=COLUMN (Python: column_map={{'{missing[0]}': 'COLUMN'}})")
@@ -452,12 +452,12 @@ def _numbers(path: Path, series: pd.Series, column: str) -> np.ndarray:
 
 def _merge_rows(path: Path, table: pd.DataFrame) -> pd.DataFrame:
     """Rows ordered by time, one per time stamp; each sensor's own stamps strictly increasing."""
-    groups = [g for g in (io.GYRO_COLUMNS, io.MAG_COLUMNS, *SPEC_OPTIONAL_GROUPS) if g[0] in table]
-    t = table[io.TIME_COLUMN].to_numpy()
+    groups = [g for g in (sessions.GYRO_COLUMNS, sessions.MAG_COLUMNS, *SPEC_OPTIONAL_GROUPS) if g[0] in table]
+    t = table[sessions.TIME_COLUMN].to_numpy()
     any_sample = np.zeros(len(table), dtype=bool)
     for group in groups:
         values = table[list(group)].to_numpy()
-        if group != io.QUAT_COLUMNS:  # a truth row may be partly NaN: it then counts as absent
+        if group != sessions.QUAT_COLUMNS:  # a truth row may be partly NaN: it then counts as absent
             n_finite = np.isfinite(values).sum(axis=1)
             partial = np.flatnonzero((n_finite > 0) & (n_finite < len(group)))
             if partial.size:
@@ -479,16 +479,16 @@ def _merge_rows(path: Path, table: pd.DataFrame) -> pd.DataFrame:
     table = table[any_sample]
     if len(table) == 0:
         raise InputError(f"{path}: no row holds a complete gyro or magnetometer sample")
-    table = table.sort_values(io.TIME_COLUMN, kind="stable")
-    if table[io.TIME_COLUMN].duplicated().any():
-        table = table.groupby(io.TIME_COLUMN, sort=True, as_index=False).first()
+    table = table.sort_values(sessions.TIME_COLUMN, kind="stable")
+    if table[sessions.TIME_COLUMN].duplicated().any():
+        table = table.groupby(sessions.TIME_COLUMN, sort=True, as_index=False).first()
     return table.reset_index(drop=True)
 
 
 def _check_time_unit(path: Path, table: pd.DataFrame, time_unit: str) -> None:
     """The gyro's median sample interval must be between 10 us and 1 s."""
-    g = table[list(io.GYRO_COLUMNS)].notna().all(axis=1).to_numpy()
-    t_g = table[io.TIME_COLUMN].to_numpy()[g]
+    g = table[list(sessions.GYRO_COLUMNS)].notna().all(axis=1).to_numpy()
+    t_g = table[sessions.TIME_COLUMN].to_numpy()[g]
     if len(t_g) < 2:
         return
     step_s = float(np.median(np.diff(t_g)))
@@ -506,9 +506,9 @@ def _check_time_unit(path: Path, table: pd.DataFrame, time_unit: str) -> None:
 
 def session_from_table(table: pd.DataFrame, metadata: dict, source: str,
                        gyro_unit: str | None = None, mag_unit: str | None = None) -> Session:
-    """A SPEC table through the same checks as `io.load_session`; messages start with `source`."""
+    """A SPEC table through the same checks as `sessions.load_session`; messages start with `source`."""
     try:
-        return io.session_from_table(table, dict(metadata), source, gyro_unit, mag_unit)
+        return sessions.session_from_table(table, dict(metadata), source, gyro_unit, mag_unit)
     except InputError as exc:
         raise InputError(f"{source}: {exc}") from None
 
@@ -520,9 +520,9 @@ def trim(session: Session, t0_s: float, t1_s: float) -> Session:
         raise InputError(f"trim window [{t0_s}, {t1_s}] s is empty; it needs t0 < t1")
     cut = session.within(t0_s, t1_s)
     for name, t_x in (("gyro", cut.t_gyro_s), ("magnetometer", cut.t_mag_s)):
-        if len(t_x) < io.MIN_SAMPLES:
+        if len(t_x) < sessions.MIN_SAMPLES:
             raise InputError(f"trim window [{t0_s:g}, {t1_s:g}] s keeps {len(t_x)} {name} samples, need at least "
-                             f"{io.MIN_SAMPLES}; the session spans {session.t_gyro_s[0]:g} to "
+                             f"{sessions.MIN_SAMPLES}; the session spans {session.t_gyro_s[0]:g} to "
                              f"{session.t_gyro_s[-1]:g} s")
     return replace(cut, metadata={**session.metadata, "trimmed_to_s": f"{t0_s!r} {t1_s!r}"})
 
@@ -538,7 +538,7 @@ def decimate(session: Session, n: int) -> Session:
         raise InputError(f"decimation factor {n}; it must be a positive integer")
     if n == 1:
         return session
-    table = io.session_table(session).iloc[::n].reset_index(drop=True)
+    table = sessions.session_table(session).iloc[::n].reset_index(drop=True)
     metadata = {**session.metadata, "decimated_by": str(n)}
     if "sampling_rate_hz" in metadata:
         metadata["sampling_rate_hz"] = repr(float(metadata["sampling_rate_hz"]) / n)
@@ -547,5 +547,5 @@ def decimate(session: Session, n: int) -> Session:
 
 def write_session_parquet(session: Session, path, compression: str = "zstd",
                           compression_level: int | None = None) -> None:
-    """`io.write_session` to Parquet with a chosen compression (zstd by default, for shipped data)."""
-    io.write_session(session, path, compression=compression, compression_level=compression_level)
+    """`sessions.write_session` to Parquet with a chosen compression (zstd by default, for shipped data)."""
+    sessions.write_session(session, path, compression=compression, compression_level=compression_level)

@@ -23,13 +23,21 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 
-from . import consistency, magfit, noise, rests, so3
-from .errors import InputError, ObservabilityError, SolverError
-from .initial import linear_gyro_estimate, with_time_offset
-from .observability import ObservabilityAnalysis, analyse
-from .problem import N_GLOBAL, TIME_OFFSET_SCALE_S, Grid, JointProblem, Linearisation, build_grid
-from .result import N_REPORTED, Calibration, axis_mapping_warning, qr_split, reported_vector, std_from_covariance
-from .session import Session
+from magyro.result import consistency
+
+from magyro.front import ellipsoid
+
+from magyro.front import noise
+
+from magyro.front import rests
+
+from magyro import so3
+from magyro.errors import InputError, ObservabilityError, SolverError
+from magyro.front.initial import linear_gyro_estimate, with_time_offset
+from magyro.observability.gate import ObservabilityAnalysis, analyse
+from magyro.nls.problem import N_GLOBAL, TIME_OFFSET_SCALE_S, Grid, JointProblem, Linearisation, build_grid
+from magyro.result.calibration import N_REPORTED, Calibration, axis_mapping_warning, qr_split, reported_vector, std_from_covariance
+from magyro.session import Session
 
 NODE_RATE_HZ = 25.0   # nodes per second: strides 1, 2 and 4 at 100 Hz give the same estimates and std to 1e-6
 MAX_PASSES = 3
@@ -71,7 +79,7 @@ class Prepared:
     session: Session                # trimmed to the moving span when Options.trim_rests
     sigma_mag: float
     gyro_density: float
-    fit: magfit.EllipsoidFit
+    fit: ellipsoid.EllipsoidFit
     field_m: np.ndarray
     analysis: ObservabilityAnalysis
     rests: rests.Rests | None = None
@@ -169,21 +177,21 @@ def prepare(session: Session, options: Options) -> Prepared:
     sigma_mag, density = levels.mag_std, levels.gyro_density_rad_s_sqrt_hz
     gyro_std, mag_sample = levels.gyro_sample_std_rad_s, levels.mag_sample_std
     try:
-        fit = magfit.fit_ellipsoid(session.mag, mag_sample)
-    except magfit.DegenerateCloud as cloud:
+        fit = ellipsoid.fit_ellipsoid(session.mag, mag_sample)
+    except ellipsoid.DegenerateCloud as cloud:
         turned_deg = gyro_angle_turned_deg(session)
         if cloud.kind == "static" and turned_deg > MAG_MUST_FOLLOW_DEG:
             raise InputError(
                 f"the gyro turned {turned_deg:.0f} deg but the magnetometer readings do not follow: they vary no "
                 "more than their own noise; check that mx, my, mz are a magnetometer and are not noise or constant"
             ) from None
-        field = magfit.surrogate_field_directions(session.mag)
+        field = ellipsoid.surrogate_field_directions(session.mag)
         analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, mag_sample / np.mean(np.linalg.norm(session.mag, axis=1)))
         raise ObservabilityError(
             f"{cloud}; the magnetometer's soft/hard iron cannot be fitted. Gyro parameters: {analysis.summary()}",
             analysis,
         ) from None
-    field = magfit.calibrated_field(fit.R, fit.h, session.mag)
+    field = ellipsoid.calibrated_field(fit.R, fit.h, session.mag)
     check_gyro_unit(session, field)
     analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, mag_sample * float(np.mean(np.diag(fit.R))))
     if not analysis.full_rank and not options.force:
@@ -463,7 +471,7 @@ def field_magnitude_change(session: Session, R: np.ndarray, h: np.ndarray) -> di
     The method assumes a homogeneous field: its magnitude must not change along
     the path. A magnet or iron near the path shows as a local change.
     """
-    norm = np.linalg.norm(magfit.calibrated_field(R, h, session.mag), axis=1)
+    norm = np.linalg.norm(ellipsoid.calibrated_field(R, h, session.mag), axis=1)
     window = np.floor((session.t_mag_s - session.t_mag_s[0]) / FIELD_WINDOW_S).astype(int)
     mean = np.bincount(window, weights=norm) / np.maximum(np.bincount(window), 1)
     dev = np.abs(mean - 1.0)
@@ -485,7 +493,7 @@ def rest_check(found: rests.Rests | None, K_g: np.ndarray, bias_rad_s: np.ndarra
 
 
 def warnings_for(segments: list[dict], rest: dict | None, analysis: ObservabilityAnalysis, C_b_m: np.ndarray,
-                 fit: magfit.EllipsoidFit, field_change: dict) -> list[str]:
+                 fit: ellipsoid.EllipsoidFit, field_change: dict) -> list[str]:
     out = []
     if field_change["max_fraction"] > MAX_FIELD_CHANGE:
         out.append(
@@ -494,7 +502,7 @@ def warnings_for(segments: list[dict], rest: dict | None, analysis: Observabilit
             "homogeneous there (a magnet or iron near the path) or the magnetometer is not linear; this calibration "
             "assumes a homogeneous field, so re-record away from iron, or try --loss huber"
         )
-    if fit.uniqueness < magfit.MIN_UNIQUENESS:
+    if fit.uniqueness < ellipsoid.MIN_UNIQUENESS:
         out.append(
             f"the field directions cover little of the sphere (ellipsoid uniqueness {fit.uniqueness:.2f}): "
             "the magnetometer's R and h rest on the gyro as much as on the ellipsoid; turn through more orientations"

@@ -39,9 +39,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import so3
-from .errors import InputError
-from .session import Session
+from magyro import so3
+from magyro.errors import InputError
+from magyro.session import Session
 
 try:  # Python >= 3.11
     import tomllib
@@ -51,9 +51,10 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 TRUTH_SCHEMA = "magyro.truth/1"
 # the problems shipped with magyro: installed as package data (magyro/problems), or the
 # top-level problems/ of a source checkout
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
 PROBLEMS_DIR = next(
-    (d for d in (Path(__file__).parent / "problems", Path(__file__).parent.parent / "problems") if d.is_dir()),
-    Path(__file__).parent.parent / "problems",
+    (d for d in (PACKAGE_DIR / "problems", PACKAGE_DIR.parent / "problems") if d.is_dir()),
+    PACKAGE_DIR.parent / "problems",
 )
 MOTION_KINDS = ("euler", "sequential", "static")
 AXES = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
@@ -525,6 +526,6 @@ def truth_dict(problem: Problem, seed: int, noise_scale: float = 1.0) -> dict:
 
 def write_truth(truth: dict, path: str | os.PathLike) -> None:
     """Write the truth JSON atomically (whole or not at all)."""
-    from .io import write_text_atomically
+    from magyro.io.sessions import write_text_atomically
 
     write_text_atomically(path, json.dumps(truth, indent=2) + "\n")

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from magyro.errors import InputError
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .excitation import information_integral, trapezoid_weights
+from magyro.observability.matrix import information_integral, trapezoid_weights
 
 FLOOR_FACTOR = 10.0
 NUMERICAL_RTOL = 1e-12
@@ -76,7 +76,7 @@ def count_rank(eigenvalues: np.ndarray, floor: float) -> tuple[int, float]:
 
 def noise_matrix(t_gyro_s, gyro_rad_s, t_mag_s, field_m, gyro_sample_std_rad_s: float, mag_std_unit_field: float) -> np.ndarray:
     """N: what per-sample sensor noise adds, in expectation, to the integral of M^T M (12 x 12)."""
-    from .excitation import field_on_gyro_times
+    from magyro.observability.matrix import field_on_gyro_times
 
     inside, f = field_on_gyro_times(t_gyro_s, t_mag_s, field_m)
     w = trapezoid_weights(t_gyro_s[inside])
@@ -94,7 +94,7 @@ def cumulative_noise_matrix(t_gyro_s, gyro_rad_s, t_mag_s, field_m, gyro_sample_
 
     At a checkpoint on the last gyro sample it equals `noise_matrix` of the whole session.
     """
-    from .excitation import field_on_gyro_times
+    from magyro.observability.matrix import field_on_gyro_times
 
     inside, f = field_on_gyro_times(t_gyro_s, t_mag_s, field_m)
     t = np.asarray(t_gyro_s, dtype=float)[inside]

@@ -24,8 +24,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .errors import InputError
-from .session import Session
+from magyro.errors import InputError
+from magyro.session import Session
 
 MIN_SAMPLES = 100
 MAX_PLAUSIBLE_RATE_RAD_S = 40.0  # ~2300 deg/s, beyond any MEMS gyro full scale

@@ -21,9 +21,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from .errors import MagyroError
-from .result import Calibration, misalignment_vector
-from .session import Session
+from magyro.errors import MagyroError
+from magyro.result.calibration import Calibration, misalignment_vector
+from magyro.session import Session
 
 MAX_HALF_Z = 4.0   # one parameter; 12 unit normals exceed it with probability ~1e-3
 MAX_RMS_Z = 2.0    # all twelve together; simulated sessions reached 1.35, BROAD trials 2.1-3.1

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .excitation import windowed_increments
+from magyro.observability.matrix import windowed_increments
 
 DEFAULT_WINDOW_S = 0.1
 MAX_TIME_OFFSET_S = 0.1

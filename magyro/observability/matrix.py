@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .so3 import skew
+from magyro.so3 import skew
 
 PARAMETER_NAMES = (
     "K11", "K21", "K31", "K12", "K22", "K32", "K13", "K23", "K33", "eps_x", "eps_y", "eps_z",

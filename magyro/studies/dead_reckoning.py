@@ -44,9 +44,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import so3
-from .errors import InputError
-from .session import Session
+from magyro import so3
+from magyro.errors import InputError
+from magyro.session import Session
 
 SCHEMA = "magyro.validation/1"
 POSE_WINDOW_S = 0.5          # averaged at each end for the equal-pose check
@@ -143,7 +143,7 @@ class ValidationReport:
 def calibration_gyro(calibration) -> dict:
     """K_g (3x3), bias_rad_s (3,), and R, h when present, from whatever was passed.
 
-    Accepts a `magyro.result.Calibration`, a dict laid out like the calibration JSON (or
+    Accepts a `magyro.result.calibration.Calibration`, a dict laid out like the calibration JSON (or
     the simulator's truth JSON: same `gyro` keys), a path to such a JSON file, or None
     (identity: the calibrated gyro is the raw gyro).
     """
@@ -402,7 +402,7 @@ def plot_validation(report: ValidationReport, path) -> None:
     except ImportError:
         raise InputError("plotting needs matplotlib; install it (pip install 'magyro[plot]' or "
                          "pip install matplotlib)") from None
-    from .io import write_atomically
+    from magyro.io.sessions import write_atomically
 
     path = Path(path)
     fmt = path.suffix.lower().lstrip(".") or "png"

@@ -4,7 +4,7 @@ The full derivation, with the choices made where the paper is silent, is in
 docs/ekf.md; this is its summary.
 
 Step 1, magnetometer (paper eq. 2): the algebraic ellipsoid fit
-(`magfit.fit_ellipsoid`) starts Gauss-Newton iterations on the constant-norm
+(`ellipsoid.fit_ellipsoid`) starts Gauss-Newton iterations on the constant-norm
 condition r_k = |R (y_k - h)|^2 - 1 over R (upper triangular) and h
 (`refine_magnetometer`). The plain least squares sum r_k^2 is biased at
 O(noise^2) (the Jacobian and the residual share the noise), and when the
@@ -81,12 +81,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import magfit
-from .errors import InputError
-from .excitation import windowed_increments
-from .initial import DEFAULT_WINDOW_S, linear_gyro_estimate
-from .result import UPPER, Calibration, qr_split, reported_vector, std_from_covariance
-from .session import Session
+from magyro.front import ellipsoid
+from magyro.errors import InputError
+from magyro.observability.matrix import windowed_increments
+from magyro.front.initial import DEFAULT_WINDOW_S, linear_gyro_estimate
+from magyro.result.calibration import UPPER, Calibration, qr_split, reported_vector, std_from_covariance
+from magyro.session import Session
 
 N_STATE = 17
 IA, IK, IE, IM = slice(0, 3), slice(3, 12), slice(12, 15), slice(15, 17)
@@ -872,7 +872,7 @@ class StreamingCalibrator:
 
     def estimate(self) -> dict:
         """The current estimate: K, K_g, bias, C_b_m, Euler angles, m^i, and one-sigma of each."""
-        from .so3 import dcm_to_euler
+        from magyro.so3 import dcm_to_euler
 
         C, Kg = qr_split(self.K)
         cov = reported_covariance(self.K, self.eps, self.R, self.h, self.m, self.input_covariance(), C)
@@ -922,7 +922,7 @@ def initial_estimate(session: Session, refinement: MagnetometerRefinement, infla
     the filter will see, so its covariance is too small to be a prior: it is
     multiplied by `inflation` (in std) and floored at PRIOR_FLOOR_K / PRIOR_FLOOR_EPS.
     """
-    field_m = magfit.calibrated_field(refinement.R, refinement.h, session.mag)
+    field_m = ellipsoid.calibrated_field(refinement.R, refinement.h, session.mag)
     lin = linear_gyro_estimate(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field_m)
     dm, int_M = windowed_increments(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field_m, DEFAULT_WINDOW_S)
     A, b = int_M.reshape(-1, 12), dm.reshape(-1)
@@ -984,7 +984,7 @@ def ekf_calibrate(session: Session, options=None, *, magnetometer=None, mag_bias
 
     Returns (Calibration, EkfHistory).
     """
-    from .calibrate import Options, prepare
+    from magyro.nls.solve import Options, prepare
 
     options = options or Options()
     t_start = time.perf_counter()

@@ -40,8 +40,8 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
-from . import so3
-from .compiled import compile_kernel, load_cached_kernel
+from magyro import so3
+from magyro.nls.kernels import compile_kernel, load_cached_kernel
 
 N_GLOBAL = 23          # calibration corrections without the time offset; 24 with it
 GLOBAL_SLICES = {"U": slice(0, 6), "dh": slice(6, 9), "dK": slice(9, 18), "deps": slice(18, 21), "dm": slice(21, 23), "dtau": slice(23, 24)}

@@ -14,7 +14,7 @@ magnetometer) the report gives:
   of the sphere of field directions visited (equal-area cells);
 - the predicted one-sigma of every calibration parameter: the Fisher
   information of the joint problem at the initial estimate
-  (`magyro.calibrate.predicted_std`), laid out like the calibration's `std`;
+  (`magyro.nls.solve.predicted_std`), laid out like the calibration's `std`;
 - a verdict, "sufficient" | "marginal" | "insufficient", with the reason.
 
 Times in the report are seconds from the session's first gyro sample
@@ -32,12 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import magfit
-from .calibrate import Options, Prepared, moving_session, predicted_std, prepare
-from .errors import InputError, MagyroError, ObservabilityError
-from .excitation import PARAMETER_NAMES, cumulative_information, trapezoid_weights
-from .observability import FLOOR_FACTOR, ObservabilityAnalysis, cumulative_noise_matrix, directional_rank
-from .session import Session
+from magyro.front import ellipsoid
+from magyro.nls.solve import Options, Prepared, moving_session, predicted_std, prepare
+from magyro.errors import InputError, MagyroError, ObservabilityError
+from magyro.observability.matrix import PARAMETER_NAMES, cumulative_information, trapezoid_weights
+from magyro.observability.gate import FLOOR_FACTOR, ObservabilityAnalysis, cumulative_noise_matrix, directional_rank
+from magyro.session import Session
 
 SCHEMA = "magyro.observability/1"
 CHECKPOINTS = 200                 # cumulative integral evaluated at this many times
@@ -249,9 +249,9 @@ def observe(session: Session, options: Options | None = None, targets: Targets |
         mag_std_unit_field = levels.mag_sample_std * float(np.mean(np.diag(prep.fit.R)))
     except ObservabilityError as err:  # the ellipsoid cannot be fitted (static, planar, sparse cloud)
         analysis = err.report
-        cloud = err.__context__ if isinstance(err.__context__, magfit.DegenerateCloud) else None
+        cloud = err.__context__ if isinstance(err.__context__, ellipsoid.DegenerateCloud) else None
         problem = str(cloud) if cloud is not None else str(err).split(";")[0]
-        field_m = magfit.surrogate_field_directions(s.mag)
+        field_m = ellipsoid.surrogate_field_directions(s.mag)
         mag_std_unit_field = levels.mag_sample_std / float(np.mean(np.linalg.norm(s.mag, axis=1)))
 
     tl = timeline(s, field_m, levels.gyro_sample_std_rad_s, mag_std_unit_field, checkpoints, t0)
@@ -333,8 +333,8 @@ def bias_free_rates(session: Session, prep: Prepared | None, analysis: Observabi
     """
     y = session.gyro_rad_s
     if prep is not None and analysis.full_rank:
-        from .initial import linear_gyro_estimate
-        from .result import qr_split
+        from magyro.front.initial import linear_gyro_estimate
+        from magyro.result.calibration import qr_split
 
         lin = linear_gyro_estimate(session.t_gyro_s, y, session.t_mag_s, prep.field_m)
         try:
@@ -520,7 +520,7 @@ def require_matplotlib():
 def plot_report(report: ObservabilityReport, path) -> None:
     """The figure: field-direction coverage, eigenvalue growth, signal to noise, rates per axis. Written atomically."""
     Figure = require_matplotlib()
-    from .io import write_atomically
+    from magyro.io.sessions import write_atomically
 
     path = Path(path)
     fmt = path.suffix.lstrip(".").lower() or "png"
@@ -626,7 +626,7 @@ TABLE_END = "<!-- table:canonical:end -->"
 
 def canonical_reports(seed: int = 0) -> dict[str, ObservabilityReport]:
     """observe() on every canonical problem of problems/, simulated with `seed`."""
-    from .simulate import load_problem, simulate
+    from magyro.studies.simulate import load_problem, simulate
 
     return {name: observe(simulate(load_problem(name), seed)[0]) for name, _, _ in CANONICAL}
 

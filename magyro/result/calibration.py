@@ -6,8 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import so3
-from .errors import InputError
+from magyro import so3
+from magyro.errors import InputError
 
 SCHEMA = "magyro.calibration/1"
 UPPER = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
