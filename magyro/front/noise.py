@@ -16,7 +16,14 @@ know their sensor pass the numbers instead.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+from magyro.errors import InputError
+from magyro.front import rests
+from magyro.options import Options
+from magyro.session import Session
 
 THIRD_DIFFERENCE_GAIN = np.sqrt(20.0)  # sqrt(1 + 9 + 9 + 1)
 MAD_TO_STD = 1.4826
@@ -68,3 +75,48 @@ def effective_std(x: np.ndarray) -> float:
     """RMS over axes of the per-sample std, times sqrt(tau): the white std carrying the same information."""
     per_sample = float(np.sqrt(np.mean(np.var(np.asarray(x, dtype=float), axis=0))))
     return per_sample * np.sqrt(integrated_autocorrelation_time(x))
+
+
+MIN_REST_FOR_NOISE_S = 2.0
+
+
+@dataclass(frozen=True)
+class NoiseLevels:
+    """Per-sample stds (what noise adds sample by sample) and effective white levels (what weights the fit)."""
+
+    mag_sample_std: float          # magnetometer unit
+    gyro_sample_std_rad_s: float
+    mag_std: float                 # effective: per-sample std * sqrt(autocorrelation time)
+    gyro_density_rad_s_sqrt_hz: float
+    source: str
+
+
+def noise_levels(session: Session, options: Options, found: rests.Rests) -> NoiseLevels:
+    """Noise levels: given, from the longest rest (correlation included), or from third differences (white)."""
+    rate = session.gyro_rate_hz
+    if found.seconds >= MIN_REST_FOR_NOISE_S:
+        longest = max(found.segments_s, key=lambda ab: ab[1] - ab[0])
+        still = rests.rests_from_segments(session, [longest])
+        mag_sample = float(np.sqrt(np.mean(np.var(still.mag_still, axis=0))))
+        gyro_sample = float(np.sqrt(np.mean(np.var(still.gyro_still, axis=0))))
+        mag_eff = effective_std(still.mag_still)
+        density = effective_std(still.gyro_still) / np.sqrt(rate)
+        source = f"the {longest[1] - longest[0]:.1f} s rest (correlation included)"
+    else:
+        mag_sample = mag_eff = mag_noise_std(session.mag)
+        density = gyro_noise_density_rad_s_sqrt_hz(session.gyro_rad_s, rate)
+        gyro_sample = density * np.sqrt(rate)
+        source = "third differences (white noise assumed)"
+    if options.mag_noise_std:
+        mag_sample = mag_eff = options.mag_noise_std
+    if options.gyro_noise_density_rad_s_sqrt_hz:
+        density = options.gyro_noise_density_rad_s_sqrt_hz
+        gyro_sample = density * np.sqrt(rate)
+    if options.mag_noise_std or options.gyro_noise_density_rad_s_sqrt_hz:
+        source = "given" if options.mag_noise_std and options.gyro_noise_density_rad_s_sqrt_hz else source + ", partly given"
+    if not (mag_eff > 0 and density > 0):
+        raise InputError(
+            "cannot estimate the sensor noise from the data (the readings do not vary); "
+            "pass --mag-noise and --gyro-noise"
+        )
+    return NoiseLevels(float(mag_sample), float(gyro_sample), float(mag_eff), float(density), source)

@@ -13,7 +13,7 @@ that IPOPT sees numbers of order one:
     phi  (3 x (N-1))  attitude at nodes 1..N-1: C_m^i(tau_n) = Cbar_n Exp(phi_n)
 
 Node 0 sits on the first magnetometer sample with C_i^m = I (the gauge of
-SPEC section 1, paper eq. 12). Nodes sit on every `stride`-th magnetometer
+docs/spec.md section 1, paper eq. 12). Nodes sit on every `stride`-th magnetometer
 sample; between them the gyro is integrated in sub-steps ending on every
 gyro and magnetometer time, each a rotation by
 (w_a + w_b)/2 dt + dt^2/12 (w_a x w_b), w = K y_g + eps (third-order local
@@ -41,6 +41,7 @@ import casadi as ca
 import numpy as np
 
 from magyro import so3
+from magyro.nls.grid import Grid, gyro_at_mag_midpoints
 from magyro.nls.kernels import compile_kernel, load_cached_kernel
 
 N_GLOBAL = 23          # calibration corrections without the time offset; 24 with it
@@ -48,115 +49,6 @@ GLOBAL_SLICES = {"U": slice(0, 6), "dh": slice(6, 9), "dK": slice(9, 18), "deps"
 TIME_OFFSET_SCALE_S = 0.01
 UPPER_INDEX = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
 GLOBAL_LAYOUT = [("S0", 9), ("h0", 3), ("K0", 9), ("eps0", 3), ("m0", 3), ("B", 6), ("field_scale", 1), ("Winv", 9), ("w_mag", 1), ("tau0", 1)]
-
-
-# --------------------------------------------------------------------------- grid
-@dataclass(frozen=True)
-class Grid:
-    """Where nodes, sub-steps and magnetometer samples sit; numbers only.
-
-    Interval n (node n to n+1) holds `stride` segments, each from one
-    magnetometer sample to the next, each cut into at most `substeps`
-    sub-steps (padded with zero length). A gap in the magnetometer record is
-    bridged by segments about one typical interval long that start at no
-    sample (weight 0), so one gap does not pad every interval of the session
-    to its length.
-    """
-
-    t_node_s: np.ndarray         # (N,)
-    mag_index: np.ndarray        # (N-1, stride) magnetometer sample at each segment start (the one before, if none)
-    dt_s: np.ndarray             # (N-1, stride, L)
-    gyro_a: np.ndarray           # (N-1, stride, L, 3) raw gyro at each sub-step start
-    gyro_b: np.ndarray           # (N-1, stride, L, 3) raw gyro at each sub-step end
-    last_mag_index: int          # magnetometer sample at the last node
-    mag_weight: np.ndarray       # (N-1, stride) 1 where a segment starts at a sample, 0 in a gap
-
-    @property
-    def nodes(self) -> int:
-        return len(self.t_node_s)
-
-    @property
-    def stride(self) -> int:
-        return self.dt_s.shape[1]
-
-    @property
-    def substeps(self) -> int:
-        return self.dt_s.shape[2]
-
-    @property
-    def interval_s(self) -> np.ndarray:
-        return np.diff(self.t_node_s)
-
-    @property
-    def node_mag_index(self) -> np.ndarray:
-        """Magnetometer sample at each node (the one before it, for a node in a gap)."""
-        return np.append(self.mag_index[:, 0], self.last_mag_index)
-
-    @property
-    def node_on_sample(self) -> np.ndarray:
-        """True for the nodes that sit on a magnetometer sample (the last node always does)."""
-        return np.append(self.mag_weight[:, 0] > 0, True)
-
-    @property
-    def sample_mask(self) -> np.ndarray:
-        """(N-1) * stride flags, in residual order: True for segments with a magnetometer sample."""
-        return self.mag_weight.reshape(-1) > 0
-
-
-MAX_SEGMENT_FACTOR = 1.5  # segments longer than this many typical magnetometer intervals are cut
-
-
-def segment_starts(t_mag_s: np.ndarray, used: np.ndarray, t_gyro_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(times, magnetometer index, on-a-sample flag) of every segment boundary.
-
-    The used samples' times, plus boundaries inside each gap longer than
-    MAX_SEGMENT_FACTOR typical intervals, about one typical interval apart and
-    placed on gyro times (so they add no sub-step, and the kernels keep the
-    gap-free session's shape); those carry the index of the sample before the
-    gap and the flag False.
-    """
-    t = t_mag_s[used]
-    dt = np.diff(t)
-    typical = float(np.median(dt)) if len(dt) else 0.0
-    long = np.flatnonzero(dt > MAX_SEGMENT_FACTOR * typical) if typical > 0 else np.array([], dtype=int)
-    extra_t, extra_i = [], []
-    for k in long:
-        pieces = int(np.ceil(dt[k] / typical))
-        wanted = t[k] + dt[k] * np.arange(1, pieces) / pieces
-        inside = t_gyro_s[(t_gyro_s > t[k]) & (t_gyro_s < t[k + 1])]
-        snapped = np.unique(inside[np.clip(np.searchsorted(inside, wanted), 0, len(inside) - 1)]) if len(inside) else wanted
-        extra_t.append(snapped)
-        extra_i.append(np.full(len(snapped), used[k]))
-    times = np.concatenate([t] + extra_t)
-    index = np.concatenate([used] + extra_i)
-    on_sample = np.concatenate([np.ones(len(t), dtype=bool)] + [np.zeros(len(e), dtype=bool) for e in extra_t])
-    order = np.argsort(times, kind="stable")
-    return times[order], index[order], on_sample[order]
-
-
-def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
-    """Nodes on every `stride`-th segment boundary (magnetometer samples, gaps cut) inside the gyro's span."""
-    usable = np.flatnonzero((t_mag_s >= t_gyro_s[0]) & (t_mag_s <= t_gyro_s[-1]))
-    t_bound, idx_bound, on_sample = segment_starts(t_mag_s, usable, t_gyro_s)
-    n_int = (len(t_bound) - 1) // stride
-    t_seg = t_bound[: n_int * stride + 1]
-    seg_idx = idx_bound[: n_int * stride + 1]
-    inside = t_gyro_s[(t_gyro_s > t_seg[0]) & (t_gyro_s < t_seg[-1])]
-    t_all = np.union1d(inside, t_seg)
-    y_all = np.column_stack([np.interp(t_all, t_gyro_s, gyro_rad_s[:, i]) for i in range(3)])
-    seg_of_step = np.searchsorted(t_seg, t_all[:-1], side="right") - 1
-    first = np.searchsorted(seg_of_step, np.arange(len(t_seg) - 1), side="left")
-    pos = np.arange(len(t_all) - 1) - first[seg_of_step]
-    L = int(pos.max()) + 1
-    interval, segment = np.divmod(seg_of_step, stride)
-    dt = np.zeros((n_int, stride, L))
-    ya = np.zeros((n_int, stride, L, 3))
-    yb = np.zeros((n_int, stride, L, 3))
-    dt[interval, segment, pos] = np.diff(t_all)
-    ya[interval, segment, pos] = y_all[:-1]
-    yb[interval, segment, pos] = y_all[1:]
-    weight = on_sample[: n_int * stride].reshape(n_int, stride).astype(float)
-    return Grid(t_seg[::stride], seg_idx[:-1].reshape(n_int, stride), dt, ya, yb, int(seg_idx[-1]), weight)
 
 
 # ------------------------------------------------------------- SX building blocks
@@ -266,13 +158,6 @@ class Linearisation:
     field_scale: float         # typical |R^-1|, scales dh
     time_offset_s: float = 0.0  # magnetometer lag to start from
 
-
-def tangent_basis(m0: np.ndarray) -> np.ndarray:
-    """3 x 2 orthonormal basis of the plane perpendicular to the unit vector m0."""
-    a = np.eye(3)[int(np.argmin(np.abs(m0)))]
-    b1 = np.cross(m0, a)
-    b1 /= np.linalg.norm(b1)
-    return np.column_stack([b1, np.cross(m0, b1)])
 
 
 # -------------------------------------------------------------------- the problem
@@ -407,7 +292,7 @@ class JointProblem:
         Lchol = np.linalg.cholesky(lin.K0 @ lin.K0.T)
         glob = {
             "S0": lin.S0, "h0": lin.h0, "K0": lin.K0, "eps0": lin.eps0, "m0": lin.m0,
-            "B": tangent_basis(lin.m0), "field_scale": np.array([lin.field_scale]),
+            "B": so3.tangent_basis(lin.m0), "field_scale": np.array([lin.field_scale]),
             "Winv": np.linalg.inv(Lchol) / sigma_gyro_density, "w_mag": np.array([1.0 / sigma_mag]),
             "tau0": np.array([tau0_s]),
         }
@@ -459,14 +344,6 @@ class JointProblem:
             x, p, _ = self._symbols
             self._solver = ca.nlpsol("joint", "ipopt", {"x": x, "p": p, "f": self._residual_graph[1]}, opts)
         return self._solver
-
-
-def gyro_at_mag_midpoints(grid: Grid, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s: float) -> np.ndarray:
-    """Raw gyro at each used magnetometer stamp minus tau0/2: (N-1, stride, 3)."""
-    if t_gyro_s is None:
-        return np.zeros(grid.mag_index.shape + (3,))
-    t = t_mag_s[grid.mag_index] - 0.5 * tau0_s
-    return np.stack([np.interp(t, t_gyro_s, gyro_rad_s[:, i]) for i in range(3)], axis=-1)
 
 
 def hessian_pattern(n_int: int, G: int = N_GLOBAL):

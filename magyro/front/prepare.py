@@ -1,0 +1,106 @@
+"""The front end every method shares: from a loaded session to what a solver starts from.
+
+    1. rests found at both ends, noise levels from them (`magyro.front.noise`),
+       the session trimmed to its moving span (the paper excludes the rests)
+    2. the magnetometer ellipsoid (paper step 1, `magyro.front.ellipsoid`)
+    3. the gyro unit check: the gyro must turn the field as fast as the
+       magnetometer sees it turn
+    4. the observability gate on the integral of M^T M (`magyro.observability`)
+       -> ObservabilityError (exit 3) when rank < 12, unless forced
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from magyro.errors import InputError, ObservabilityError
+from magyro.front import ellipsoid, rests
+from magyro.front.noise import NoiseLevels, noise_levels
+from magyro.observability.gate import ObservabilityAnalysis, analyse
+from magyro.options import Options
+from magyro.session import Session
+
+MIN_MOVING_SAMPLES = 100
+MAG_MUST_FOLLOW_DEG = 180.0
+MIN_RATE_RATIO = 0.1
+
+
+@dataclass
+class Prepared:
+    """Everything before the solve: noise, step-1 fit, gate, initial estimates."""
+
+    session: Session                # trimmed to the moving span when Options.trim_rests
+    sigma_mag: float
+    gyro_density: float
+    fit: ellipsoid.EllipsoidFit
+    field_m: np.ndarray
+    analysis: ObservabilityAnalysis
+    rests: rests.Rests | None = None
+    noise_source: str = ""
+
+
+def gyro_angle_turned_deg(session: Session) -> float:
+    """Total angle the raw gyro says the device turned (integral of |w| dt)."""
+    return float(np.rad2deg(np.sum(np.linalg.norm(session.gyro_rad_s[1:], axis=1) * np.diff(session.t_gyro_s))))
+
+
+def check_gyro_unit(session: Session, field_m: np.ndarray) -> None:
+    """The gyro must turn the field as fast as the magnetometer sees it turn; deg/s labelled rad/s turns it 57x too fast."""
+    t, y = session.t_gyro_s, session.gyro_rad_s
+    step = max(1, int(round(0.1 * session.mag_rate_hz)))
+    tm = session.t_mag_s[::step]
+    fm = field_m[::step]
+    seen = np.sum(np.linalg.norm(np.diff(fm, axis=0), axis=1))
+    inside = (t >= tm[0]) & (t <= tm[-1])
+    f_on_g = np.column_stack([np.interp(t[inside], session.t_mag_s, field_m[:, i]) for i in range(3)])
+    w = np.gradient(t[inside])
+    predicted = np.sum(np.linalg.norm(np.cross(f_on_g, y[inside]), axis=1) * w)
+    if predicted > np.deg2rad(90) and seen / predicted < MIN_RATE_RATIO:
+        raise InputError(
+            f"the gyro turns {predicted / seen:.0f}x faster than the magnetometer sees the field turn: "
+            "the gyro looks like deg/s labelled rad/s; pass --gyro-unit deg/s"
+        )
+
+
+def moving_session(session: Session, options: Options) -> tuple[Session, NoiseLevels, rests.Rests]:
+    """(the session as the calibration sees it, noise levels, rests): rests found, noise levels
+    from them, and the session trimmed to its moving span when Options.trim_rests. A session
+    that is one long rest stays whole: the gate then calls it static."""
+    found = rests.find_rests(session)
+    levels = noise_levels(session, options, found)
+    if options.trim_rests and found.segments_s:
+        moving = session.within(*rests.moving_span(session, found))
+        if min(len(moving.t_mag_s), len(moving.t_gyro_s)) >= MIN_MOVING_SAMPLES:
+            session = moving
+    return session, levels, found
+
+
+def prepare(session: Session, options: Options) -> Prepared:
+    """Steps 1-3: noise, rests, ellipsoid, observability. Raises ObservabilityError unless forced."""
+    session, levels, found = moving_session(session, options)
+    sigma_mag, density = levels.mag_std, levels.gyro_density_rad_s_sqrt_hz
+    gyro_std, mag_sample = levels.gyro_sample_std_rad_s, levels.mag_sample_std
+    try:
+        fit = ellipsoid.fit_ellipsoid(session.mag, mag_sample)
+    except ellipsoid.DegenerateCloud as cloud:
+        turned_deg = gyro_angle_turned_deg(session)
+        if cloud.kind == "static" and turned_deg > MAG_MUST_FOLLOW_DEG:
+            raise InputError(
+                f"the gyro turned {turned_deg:.0f} deg but the magnetometer readings do not follow: they vary no "
+                "more than their own noise; check that mx, my, mz are a magnetometer and are not noise or constant"
+            ) from None
+        field = ellipsoid.surrogate_field_directions(session.mag)
+        analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, mag_sample / np.mean(np.linalg.norm(session.mag, axis=1)))
+        raise ObservabilityError(
+            f"{cloud}; the magnetometer's soft/hard iron cannot be fitted. Gyro parameters: {analysis.summary()}",
+            analysis,
+        ) from None
+    field = ellipsoid.calibrated_field(fit.R, fit.h, session.mag)
+    check_gyro_unit(session, field)
+    analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, mag_sample * float(np.mean(np.diag(fit.R))))
+    if not analysis.full_rank and not options.force:
+        raise ObservabilityError(
+            f"the motion does not excite every gyro parameter: {analysis.summary()} (--force solves anyway)", analysis
+        )
+    return Prepared(session, sigma_mag, density, fit, field, analysis, found, levels.source)

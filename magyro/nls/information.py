@@ -1,0 +1,110 @@
+"""The Gauss-Newton information of the joint problem and what follows from it.
+
+The attitudes are eliminated by a sparse LDL of the block-tridiagonal
+attitude block (no dense N x N matrix), leaving the marginal information of
+the calibration corrections; its inverse is propagated through R = S^-1 and
+the QR split to the reported parameters. One function serves three uses:
+the std of a solve (at the solution), the accuracy `magyro observe` predicts
+before solving (at the initial estimate), and the Cramer-Rao bound of
+`magyro montecarlo` (at the truth).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from magyro.front.prepare import Prepared
+from magyro.nls.method import NLS
+from magyro.options import Options
+from magyro.nls.problem import JointProblem, Linearisation
+from magyro.nls.solve import build_problem, problem_parameters
+from magyro.result.reported import N_REPORTED, qr_split, reported_vector, std_from_covariance
+
+
+@dataclass(frozen=True)
+class Reduced:
+    """J^T J with the trajectory eliminated: the marginal information of the calibration corrections."""
+
+    information: np.ndarray   # Schur complement H_tt - H_tp D^-1 H_pt
+    H_tp: np.ndarray
+    D: ca.DM                  # the attitude block (sparse, block tridiagonal), full symmetric
+    D_solver: ca.Linsol       # its sparse LDL factorisation
+    Dinv_Hpt: np.ndarray      # D^-1 H_pt
+
+    def solve_D(self, b: np.ndarray) -> np.ndarray:
+        return np.array(self.D_solver.solve(self.D, ca.DM(b))).reshape(np.shape(b))
+
+
+def reduce_hessian(H_triu: ca.DM, G: int) -> Reduced:
+    """Eliminate the attitudes (after the first G unknowns) from triu(J^T J) by a sparse LDL
+    of the block-tridiagonal attitude block: no dense N x N matrix is ever formed."""
+    H_tt = np.array(ca.densify(H_triu[:G, :G]))
+    H_tt = H_tt + np.triu(H_tt, 1).T
+    H_tp = np.array(ca.densify(H_triu[:G, G:]))
+    D_triu = H_triu[G:, G:]
+    D = D_triu + ca.triu(D_triu, False).T
+    solver = ca.Linsol("attitude_block", "ldl", D.sparsity())
+    solver.sfact(D)
+    solver.nfact(D)
+    Dinv_Hpt = np.array(solver.solve(D, ca.DM(H_tp.T)))
+    return Reduced(H_tt - H_tp @ Dinv_Hpt, H_tp, D, solver, Dinv_Hpt)
+
+
+def gauss_newton_decrement(red: Reduced, grad) -> float:
+    """g^T H^-1 g: how much the objective (chi^2 units) a further Gauss-Newton step would still remove."""
+    G = red.H_tp.shape[0]
+    g_t, g_p = grad[:G], grad[G:]
+    Dinv_gp = red.solve_D(g_p)
+    x_t = np.linalg.solve(red.information, g_t - red.H_tp @ Dinv_gp)
+    x_p = Dinv_gp - red.Dinv_Hpt @ x_t
+    return float(g_t @ x_t + g_p @ x_p)
+
+
+def propagate(problem: JointProblem, theta, g, cov_theta, C_ref) -> np.ndarray:
+    """Covariance of the reported vector by central differences through R = S^-1 and the QR split."""
+    def f(th):
+        S, h, K, eps, m, tau = (np.array(v) for v in problem.physical_function(th, g))
+        return reported_vector(K, eps.ravel(), S, h.ravel(), m.ravel(), C_ref, float(tau.item()))
+
+    step = 1e-6
+    n = problem.n_theta
+    J = np.empty((len(f(theta)), n))
+    for i in range(n):
+        e = np.zeros(n)
+        e[i] = step
+        J[:, i] = (f(theta + e) - f(theta - e)) / (2 * step)
+    return J @ cov_theta @ J.T
+
+
+def information_covariance(problem: JointProblem, lin: Linearisation, p) -> np.ndarray:
+    """Covariance of the reported vector (result.REPORTED layout) from the Gauss-Newton information
+    at the linearisation point; all inf where the information is singular (a direction the data do not see)."""
+    info = reduce_hessian(problem.hessian_function(np.zeros(problem.n_x), p), problem.n_theta).information
+    lam = np.linalg.eigvalsh(info)
+    if lam[0] <= lam[-1] * 1e-14:
+        return np.full((N_REPORTED, N_REPORTED), np.inf)
+    C0, _ = qr_split(lin.K0)
+    return propagate(problem, np.zeros(problem.n_theta), p[: problem.n_glob_p], np.linalg.inv(info), C0)
+
+
+def information_std(problem: JointProblem, lin: Linearisation, p) -> dict:
+    """One-sigma of every reported parameter from the Gauss-Newton information at the linearisation point."""
+    return std_from_covariance(information_covariance(problem, lin, p))
+
+
+def predicted_std(prep: Prepared, options: Options | None = None, method: NLS | None = None) -> dict:
+    """One-sigma accuracy this recording can give, before solving.
+
+    The Gauss-Newton (Fisher) information of the joint problem at the initial
+    estimate, with the session's noise levels, trajectory marginalised out and
+    propagated like the solved std. Entries are inf where the information is
+    singular (unobservable). The linearisation point is the plain eq. (13)
+    estimate: the lag search that the solve needs to converge changes a
+    prediction by no more than the few percent it moves K.
+    """
+    options, method = options or Options(), method or NLS()
+    grid, lin, problem = build_problem(prep, options, method, search_lag=False)
+    p = problem_parameters(problem, prep, lin, prep.sigma_mag, lin.time_offset_s)
+    return information_std(problem, lin, p)

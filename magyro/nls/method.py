@@ -1,0 +1,42 @@
+"""The joint nonlinear least squares as a method object: its own knobs, apart from the physics (`Options`).
+
+    magyro.calibrate(session, options, method=NLS(stride=2, loss="huber"))
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+from magyro.errors import InputError
+
+LOSSES = ("l2", "huber")
+
+
+@dataclass(frozen=True)
+class NLS:
+    """Ellipsoid, K, eps, C_b_m, the field and the attitude trajectory as one least squares (IPOPT)."""
+
+    name: ClassVar[str] = "nls"
+    stride: int | None = None        # one attitude node every `stride` magnetometer samples (None: ~25 nodes/s)
+    max_iter: int = 100
+    compiled: bool = True            # compiled CasADi kernels, cached on disk (MAGYRO_JIT=0 turns them off)
+    loss: str = "l2"                 # "l2" or "huber" on the magnetometer residuals
+    huber_threshold: float = 3.0     # in noise sigmas
+    reweight_noise: bool = True      # robust variance-component step on the magnetometer noise
+
+    def __post_init__(self):
+        if self.loss not in LOSSES:
+            raise InputError(f"unknown loss '{self.loss}'; use l2 or huber")
+        if self.stride is not None and self.stride < 1:
+            raise InputError(f"stride must be at least 1, not {self.stride}")
+
+    @property
+    def huber(self) -> float | None:
+        """The Huber threshold in sigmas, or None for plain least squares."""
+        return self.huber_threshold if self.loss == "huber" else None
+
+    def calibrate(self, session, options=None):
+        """Calibrate gyro and magnetometer from one session (returns a `magyro.Calibration`)."""
+        from magyro.nls.run import calibrate_nls
+
+        return calibrate_nls(session, options, self)

@@ -1,0 +1,30 @@
+"""What is true of the sensors and the recording, whatever the method (`magyro.calibrate(session, options, method)`).
+
+Each method's own knobs live in its method object (`magyro.NLS`, `magyro.EKF`),
+as rockit separates a problem from its discretisation: the same `Options`
+calibrate with either.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Options:
+    """Physics settings; None means 'estimate from the data'."""
+
+    gyro_noise_density_rad_s_sqrt_hz: float | None = None
+    mag_noise_std: float | None = None      # in the magnetometer's unit
+    force: bool = False                     # solve even when the observability check fails
+    trim_rests: bool = True                 # drop the rests at both ends (the paper does)
+    estimate_time_offset: bool = True       # the magnetometer's lag behind the gyro, estimated (NLS) ...
+    time_offset_s: float = 0.0              # ... from this start, or fixed at it (the EKF shifts the stamps by it)
+    split_check: bool = False               # also calibrate each half alone and compare (magyro.result.consistency)
+
+    @classmethod
+    def in_user_units(cls, gyro_noise_deg_s_sqrt_hz: float | None = None, mag_noise_std: float | None = None,
+                      **settings) -> "Options":
+        """Options from the units people quote: the gyro noise density in deg/s/sqrt(Hz)."""
+        density = None if gyro_noise_deg_s_sqrt_hz is None else math.radians(gyro_noise_deg_s_sqrt_hz)
+        return cls(gyro_noise_density_rad_s_sqrt_hz=density, mag_noise_std=mag_noise_std, **settings)
