@@ -1,4 +1,4 @@
-"""The QR split K = C_b_m K_g and handedness (SPEC section 1), unit and end to end.
+"""The QR split K = C_b_m K_g and handedness (docs/spec.md section 1), unit and end to end.
 
 Handedness, worked out: the gyro reports an angular velocity (a pseudovector), the
 magnetometer a vector. If a magnetometer axis is negated (y_m' = D y_m, det D = -1),
@@ -15,11 +15,14 @@ import numpy as np
 import pytest
 
 from magyro import so3
-from magyro.nls.solve import calibrate
+from magyro import calibrate
 from magyro.errors import InputError
-from magyro.io.sessions import write_session
-from magyro.result.calibration import misalignment_vector, qr_split
-from magyro.studies.simulate import load_problem, simulate
+from magyro.io import write_session
+from magyro.result.reported import misalignment_vector, qr_split
+from magyro.studies.scenario import load_problem
+from magyro.result.calibration import Calibration
+from magyro.result.parts import Std
+from magyro.studies.simulate import simulate, truth_body_rate
 
 MIRROR_Z = np.diag([1.0, 1.0, -1.0])
 N_RANDOM = 300
@@ -131,12 +134,60 @@ def test_mirrored_magnetometer_axis_is_indistinguishable_from_a_rotation(paper_s
     mirrored = calibrate(dataclasses.replace(session, mag=session.mag @ MIRROR_Z))
     straight = solve_cache("paper-table1", 11).cal
     tol = 0.01  # of the straight solve's one sigma: the two problems are the same up to the rotation
-    assert np.all(np.abs(mirrored.K_g - straight.K_g) <= tol * straight.std["K_g"] + 1e-15)
-    assert np.all(np.abs(mirrored.bias_deg_s - straight.bias_deg_s) <= tol * straight.std["bias_deg_s"])
+    assert np.all(np.abs(mirrored.K_g - straight.K_g) <= tol * straight.std.K_g + 1e-15)
+    assert np.all(np.abs(mirrored.bias_deg_s - straight.bias_deg_s) <= tol * straight.std.bias_deg_s)
     d = np.rad2deg(misalignment_vector(mirrored.C_b_m, -MIRROR_Z @ straight.C_b_m))
-    assert np.all(np.abs(d) <= tol * straight.std["misalignment_deg"]), d
-    assert np.all(np.abs(mirrored.R - MIRROR_Z @ straight.R @ MIRROR_Z) <= tol * straight.std["R"] + 1e-15)
+    assert np.all(np.abs(d) <= tol * straight.std.misalignment_deg), d
+    assert np.all(np.abs(mirrored.R - MIRROR_Z @ straight.R @ MIRROR_Z) <= tol * straight.std.R + 1e-15)
     assert np.linalg.det(mirrored.C_b_m) == pytest.approx(1.0, abs=1e-12)
     # what the user is told instead: a misalignment far beyond any mounting tolerance
     assert any("axis mapping is probably wrong" in w for w in mirrored.warnings)
     assert not any("axis mapping" in w for w in straight.warnings)
+
+
+# --------------------------------------------------------------------------- the calibration file
+
+
+@pytest.fixture(scope="module")
+def solved_phone(phone_solved):
+    return phone_solved.cal
+
+
+def test_from_json_reads_back_what_to_json_wrote(solved_phone, tmp_path):
+    path = tmp_path / "calib.json"
+    solved_phone.to_json(path)
+    back = Calibration.from_json(path)
+    assert back.to_dict() == solved_phone.to_dict()
+    assert isinstance(back.std, Std) and back.std.K_g.shape == (3, 3)
+    assert back.observability.rank == 12 and back.solver.method == "nls"
+    assert back.solver.details["stride"] == solved_phone.solver.details["stride"]
+    assert Calibration.from_json(path.read_text()).to_dict() == back.to_dict()   # the text itself
+
+
+def test_apply_is_the_model_in_both_frames(solved_phone, phone_solved):
+    """omega_b = K_g y + eps_b, omega_m = C_b_m omega_b, and the field R (y_m - h) has unit norm."""
+    cal, session = solved_phone, phone_solved.session
+    y, y_m = session.gyro_rad_s[:500], session.mag[:500]
+    kept_y, kept_m = y.copy(), y_m.copy()
+    omega_b, field = cal.apply(y, y_m)
+    omega_m, _ = cal.apply(y, frame="m")
+    for k in (0, 137, 499):
+        np.testing.assert_allclose(omega_b[k], cal.K_g @ y[k] + cal.bias_rad_s, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(field[k], cal.R @ (y_m[k] - cal.h), rtol=1e-14)
+    np.testing.assert_allclose(omega_m, omega_b @ cal.C_b_m.T, atol=1e-14)
+    norm = np.linalg.norm(field, axis=1)
+    assert abs(np.mean(norm) - 1.0) < 0.01 and np.std(norm) < 0.05   # the simulated field is homogeneous
+    np.testing.assert_array_equal(y, kept_y)
+    np.testing.assert_array_equal(y_m, kept_m)
+    with pytest.raises(InputError, match="unknown frame"):
+        cal.apply(y, frame="i")
+
+
+def test_apply_turns_the_raw_gyro_into_the_true_rate(phone_solved):
+    """Applied to the raw simulated gyro, the calibration gives the true body rate within a few sigma of noise."""
+    cal, session, problem = phone_solved.cal, phone_solved.session, load_problem(phone_solved.name)
+    true_rate = truth_body_rate(problem, session.t_gyro_s)
+    raw_error = np.sqrt(np.mean((session.gyro_rad_s - true_rate) ** 2))
+    calibrated_error = np.sqrt(np.mean((cal.apply(session.gyro_rad_s)[0] - true_rate) ** 2))
+    noise_rad_s = problem.gyro_noise_density_rad_s_sqrt_hz * np.sqrt(problem.gyro_rate_hz)
+    assert calibrated_error < 1.2 * noise_rad_s < raw_error, (calibrated_error, noise_rad_s, raw_error)

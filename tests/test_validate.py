@@ -10,9 +10,11 @@ import pytest
 
 from magyro import so3
 from magyro.errors import InputError
-from magyro.io.importers import trim
-from magyro.io.sessions import load_session
-from magyro.studies.simulate import load_problem, simulate, truth_body_attitude
+from magyro.result.calibration import Calibration
+from magyro.io import trim
+from magyro.io import load_session
+from magyro.studies.scenario import load_problem
+from magyro.studies.simulate import simulate, truth_body_attitude
 from magyro.studies.dead_reckoning import attitude_at, plot_validation, validate
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -29,18 +31,24 @@ def with_truth(session, problem, offset=None):
     return dataclasses.replace(session, t_quat_s=session.t_gyro_s.copy(), quat_wxyz=so3.dcm_to_quat(C))
 
 
+def true_calibration(truth: dict) -> Calibration:
+    """The simulated sensor's true gyro and magnetometer parameters as a Calibration."""
+    return Calibration.from_parameters(truth["gyro"]["K_g"], truth["gyro"]["bias_rad_s"],
+                                       R=truth["magnetometer"]["R"], h=truth["magnetometer"]["h"], method="truth")
+
+
 @pytest.fixture(scope="module")
 def paper():
     problem = load_problem("paper-table1")
     session, truth = simulate(problem, 5)
-    return problem, session, truth
+    return problem, session, true_calibration(truth)
 
 
 @pytest.fixture(scope="module")
 def phone():
     problem = load_problem("phone-module")
     session, truth = simulate(problem, 5)
-    return problem, session, truth
+    return problem, session, true_calibration(truth)
 
 
 def test_truth_mode_true_calibration_beats_raw(paper):
@@ -103,39 +111,40 @@ def test_attitude_at_interpolates_on_the_geodesic():
 
 
 def test_calibration_inputs_agree(paper, tmp_path):
+    """A Calibration and the JSON it writes dead-reckon alike; no calibration is the raw gyro."""
     problem, session, truth = paper
     s = with_truth(session, problem)
     path = tmp_path / "cal.json"
-    path.write_text(json.dumps(truth))
-
-    @dataclasses.dataclass
-    class Cal:
-        K_g: np.ndarray
-        bias_rad_s: np.ndarray
-
-    cal = Cal(np.array(truth["gyro"]["K_g"]), np.array(truth["gyro"]["bias_rad_s"]))
-    deg_only = {"gyro": {"K_g": truth["gyro"]["K_g"], "bias_deg_s": truth["gyro"]["bias_deg_s"]}}
-    numbers = [validate(s, c).summary["calibrated"]["rms_deg"] for c in (truth, str(path), cal, deg_only)]
-    assert numbers == pytest.approx([numbers[0]] * 4, rel=1e-9)
+    truth.to_json(path)
+    numbers = [validate(s, c).summary["calibrated"]["rms_deg"] for c in (truth, str(path), path)]
+    assert numbers == pytest.approx([numbers[0]] * 3, rel=1e-12)
+    assert numbers[0] < 0.05 * validate(s, None).summary["raw"]["rms_deg"]
     identity = validate(s, None)
     assert identity.summary["calibrated"] == identity.summary["raw"]
     assert any("no calibration" in n for n in identity.notes)
 
 
 def test_bad_calibrations_are_input_errors(paper, tmp_path):
-    problem, session, _ = paper
-    with pytest.raises(InputError, match="gyro.K_g"):
-        validate(session, {"schema": "magyro.calibration/1"})
-    with pytest.raises(InputError, match="3x3"):
-        validate(session, {"gyro": {"K_g": [[1, 0], [0, 1]], "bias_rad_s": [0, 0, 0]}})
-    with pytest.raises(InputError, match="finite"):
-        validate(session, {"gyro": {"K_g": np.eye(3).tolist(), "bias_rad_s": [0, float("nan"), 0]}})
+    """What is not a calibration JSON of this schema is refused, naming the cause."""
+    problem, session, truth = paper
+    good = truth.to_dict()
+    cases = {
+        "truth.json": (json.dumps({"schema": "magyro.truth/1", "gyro": good["gyro"]}), "simulated session"),
+        "other.json": (json.dumps({**good, "schema": "magyro.calibration/2"}), "expected 'magyro.calibration/1'"),
+        "shape.json": (json.dumps({**good, "gyro": {**good["gyro"], "K_g": [[1, 0], [0, 1]]}}), r"gyro.K_g must have shape \(3, 3\)"),
+        "nan.json": (json.dumps({**good, "gyro": {**good["gyro"], "bias_rad_s": [0, float("nan"), 0]}}), "NaN"),
+        "units.json": (json.dumps({**good, "units": {**good["units"], "angular_rate": "deg/s"}}), "units"),
+        "cut.json": (json.dumps(good)[:500], "cut short"),
+        "list.json": ("[1, 2, 3]", "JSON object"),
+    }
+    for name, (text, message) in cases.items():
+        (tmp_path / name).write_text(text)
+        with pytest.raises(InputError, match=message):
+            validate(session, tmp_path / name)
     with pytest.raises(InputError, match="no such file"):
         validate(session, tmp_path / "missing.json")
-    broken = tmp_path / "broken.json"
-    broken.write_text("{not json")
-    with pytest.raises(InputError, match="not valid JSON"):
-        validate(session, broken)
+    with pytest.raises(InputError, match="must be a Calibration"):
+        validate(session, {"gyro": good["gyro"]})
 
 
 def test_closure_mode_without_truth(phone):
@@ -191,5 +200,5 @@ def test_shipped_broad_session_raw_dead_reckoning():
     # removing the rest-period gyro mean (a bias-only calibration) already cuts the error by > 3x
     t0, t1 = (float(x) for x in s.metadata["movement_span_s"].split())
     rest = (s.t_gyro_s < t0 - 0.5) | (s.t_gyro_s > t1 + 0.5)
-    bias_only = {"gyro": {"K_g": np.eye(3).tolist(), "bias_rad_s": (-s.gyro_rad_s[rest].mean(axis=0)).tolist()}}
+    bias_only = Calibration.from_parameters(np.eye(3), -s.gyro_rad_s[rest].mean(axis=0))
     assert validate(s, bias_only).summary["calibrated"]["rms_deg"] < raw["rms_deg"] / 3

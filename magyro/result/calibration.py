@@ -1,83 +1,57 @@
-"""The calibration result: QR split, uncertainty propagation, JSON (SPEC section 4), table."""
+"""The calibration result: what every method returns, its JSON (docs/spec.md section 4) and its table."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from magyro import so3
 from magyro.errors import InputError
+from magyro.result.consistency import SplitCheck
+from magyro.result.parts import (Excitation, NoiseReport, RestCheck, SolverReport, Std, as_list, read_array,
+                                 read_number, read_section)
 
 SCHEMA = "magyro.calibration/1"
-UPPER = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
-# layout of the reported vector (reported_vector), used to unpack its covariance
-REPORTED = {
-    "K_g": slice(0, 6), "bias_deg_s": slice(6, 9), "misalignment_deg": slice(9, 12), "R": slice(12, 18),
-    "h": slice(18, 21), "K": slice(21, 30), "field_i": slice(30, 33), "time_offset_s": slice(33, 34),
+UNITS = {"angular_rate": "rad/s", "time": "s", "angle": "deg"}   # and the magnetometer's own unit
+KNOWN_SCHEMAS = {  # what other magyro files are, to say so when one is given as a calibration
+    "magyro.truth/1": "the true parameters of a simulated session (magyro simulate), not a calibration",
+    "magyro.observability/1": "an excitation report (magyro observe), not a calibration",
+    "magyro.validation/1": "a dead-reckoning report (magyro validate), not a calibration",
+    "magyro.montecarlo/1": "a Monte Carlo study (magyro montecarlo), not a calibration",
 }
-N_REPORTED = 34
-
-
-def qr_split(K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(C_b_m, K_g) with K = C_b_m K_g, K_g upper triangular with positive diagonal.
-
-    Raises InputError when C_b_m would be improper (det -1). Only the gyro's
-    handedness can show up here: a mirrored magnetometer is absorbed by the
-    model (y -> D y is fitted by D R^-1 D, D C D and K -> -D K, all proper), so
-    it appears instead as a misalignment near 180 deg (see `axis_mapping_warning`).
-    """
-    Q, Rq = np.linalg.qr(K)
-    D = np.diag(np.sign(np.diag(Rq)))
-    C, Kg = Q @ D, D @ Rq
-    if np.linalg.det(C) < 0:
-        raise InputError(
-            "the gyro axes are a mirror image of the magnetometer's (det C_b_m = -1): the gyro's axis mapping is "
-            "wrong (one gyro axis negated, or two swapped); negate one gyro column (e.g. gz) or swap two, "
-            "and solve again"
-        )
-    return C, Kg
-
-
-MISALIGNMENT_WARNING_DEG = 90.0
-
-
-def axis_mapping_warning(C_b_m: np.ndarray) -> str | None:
-    """A plain warning when the gyro-to-magnetometer rotation is too large to be a mounting tolerance."""
-    angle = float(np.rad2deg(np.linalg.norm(so3.log_so3(C_b_m))))
-    if angle <= MISALIGNMENT_WARNING_DEG:
-        return None
-    return (
-        f"the gyro-to-magnetometer misalignment is {angle:.0f} deg: far more than a mounting tolerance. "
-        "An axis mapping is probably wrong (a magnetometer axis negated or swapped looks exactly like this); "
-        "check the axis conventions of both sensors"
-    )
 
 
 @dataclass
 class Calibration:
-    """Everything `magyro solve` reports. Matrices as numpy arrays."""
+    """What every method returns: the model's parameters, their one-sigma, and how they were found.
 
-    K_g: np.ndarray
-    bias_rad_s: np.ndarray
-    K: np.ndarray
-    eps_rad_s: np.ndarray
-    C_b_m: np.ndarray
-    R: np.ndarray
-    h: np.ndarray
+    The model (docs/spec.md section 1): the gyro measures y_g with w_ib^b = K_g y_g + eps_b
+    (rad/s, gyro frame b), or w^m = K y_g + eps in the magnetometer frame
+    (K = C_b_m K_g, eps = C_b_m eps_b); the magnetometer's calibrated field is
+    m^m = R (y_m - h), of unit norm. `apply` is the one place this is evaluated.
+    """
+
+    K_g: np.ndarray                # (3, 3) upper triangular: scale factors and non-orthogonality
+    bias_rad_s: np.ndarray         # eps_b, added: w = K_g y + eps_b
+    K: np.ndarray                  # C_b_m K_g
+    eps_rad_s: np.ndarray          # C_b_m eps_b
+    C_b_m: np.ndarray              # gyro frame to magnetometer frame
+    R: np.ndarray                  # (3, 3) upper triangular, magnetometer unit^-1
+    h: np.ndarray                  # hard iron, magnetometer unit
     mag_unit: str
-    field_i: np.ndarray
-    std: dict                      # one-sigma: K_g, bias_deg_s, misalignment_deg, R, h, K, field_i
-    observability: dict            # rank, condition, ...
-    solver: dict                   # method, status, iterations, seconds, ...
-    noise: dict = field(default_factory=dict)
-    fit: dict = field(default_factory=dict)
+    field_i: np.ndarray            # unit field in the inertial frame
+    std: Std
+    observability: Excitation
+    solver: SolverReport
+    noise: NoiseReport | None = None
+    fit: dict = field(default_factory=dict)   # the method's own fit statistics (see its docs)
     time_offset_s: float = 0.0     # magnetometer lag behind the gyro
     time_offset_estimated: bool = False
-    rests: dict | None = None      # rest segments and the bias they imply
+    rests: RestCheck | None = None
     warnings: list = field(default_factory=list)
-    covariance_theta: np.ndarray | None = None  # 23x23, internal correction parameters
-    consistency: dict | None = None  # split-half check (magyro.consistency), when asked for
+    consistency: SplitCheck | None = None     # the split-half check, when asked for
 
     @property
     def bias_deg_s(self) -> np.ndarray:
@@ -85,111 +59,176 @@ class Calibration:
 
     @property
     def euler_deg(self) -> np.ndarray:
+        """[roll, pitch, yaw] of C_b_m, C = Rz(yaw) Ry(pitch) Rx(roll)."""
         return so3.dcm_to_euler(self.C_b_m)
 
+    def apply(self, gyro_rad_s, mag=None, frame: str = "b") -> tuple[np.ndarray, np.ndarray | None]:
+        """(rates, field): the calibrated angular rate in rad/s and, given magnetometer readings, the calibrated field.
+
+        rates = K_g y + eps_b in the gyro frame (`frame="b"`), or K y + eps in the
+        magnetometer frame (`frame="m"`); field = R (y_m - h), of unit norm in a
+        homogeneous field. Rows are samples; the inputs are not changed.
+        """
+        y = np.asarray(gyro_rad_s, dtype=float)
+        if frame == "b":
+            rates = y @ self.K_g.T + self.bias_rad_s
+        elif frame == "m":
+            rates = y @ self.K.T + self.eps_rad_s
+        else:
+            raise InputError(f"unknown frame '{frame}'; use b (the gyro's) or m (the magnetometer's)")
+        field_m = None if mag is None else (np.asarray(mag, dtype=float) - self.h) @ self.R.T
+        return rates, field_m
+
+    @classmethod
+    def from_parameters(cls, K_g, bias_rad_s, C_b_m=None, R=None, h=None, mag_unit: str = "unknown",
+                        field_i=None, method: str = "given") -> "Calibration":
+        """A calibration of known parameters (a truth, or numbers from elsewhere), with zero std."""
+        C = np.eye(3) if C_b_m is None else np.asarray(C_b_m, dtype=float)
+        K_g, bias = np.asarray(K_g, dtype=float), np.asarray(bias_rad_s, dtype=float)
+        return cls(K_g=K_g, bias_rad_s=bias, K=C @ K_g, eps_rad_s=C @ bias, C_b_m=C,
+                   R=np.eye(3) if R is None else np.asarray(R, dtype=float),
+                   h=np.zeros(3) if h is None else np.asarray(h, dtype=float), mag_unit=mag_unit,
+                   field_i=np.array([1.0, 0.0, 0.0]) if field_i is None else np.asarray(field_i, dtype=float),
+                   std=Std.zero(), observability=Excitation(12, float("nan"), float("nan")),
+                   solver=SolverReport(method, "given", 0, 0.0))
+
     def to_dict(self) -> dict:
-        L = lambda a: np.asarray(a, dtype=float).tolist()  # noqa: E731
         return {
             "schema": SCHEMA,
+            "units": {**UNITS, "magnetometer": self.mag_unit},
             "gyro": {
-                "K_g": L(self.K_g),
-                "bias_rad_s": L(self.bias_rad_s),
-                "bias_deg_s": L(self.bias_deg_s),
-                "K": L(self.K),
-                "eps_m_rad_s": L(self.eps_rad_s),
+                "K_g": as_list(self.K_g),
+                "bias_rad_s": as_list(self.bias_rad_s),
+                "bias_deg_s": as_list(self.bias_deg_s),
+                "K": as_list(self.K),
+                "eps_m_rad_s": as_list(self.eps_rad_s),
             },
-            "misalignment": {"C_b_m": L(self.C_b_m), "euler_deg": L(self.euler_deg)},
-            "magnetometer": {"R": L(self.R), "h": L(self.h), "unit": self.mag_unit,
+            "misalignment": {"C_b_m": as_list(self.C_b_m), "euler_deg": as_list(self.euler_deg)},
+            "magnetometer": {"R": as_list(self.R), "h": as_list(self.h), "unit": self.mag_unit,
                              "field_strength": float(1.0 / np.cbrt(np.prod(np.diag(self.R))))},
-            "field_i": L(self.field_i),
+            "field_i": as_list(self.field_i),
             "time_offset_s": float(self.time_offset_s),
             "time_offset_estimated": self.time_offset_estimated,
-            "std": {k: L(v) for k, v in self.std.items()},
-            "rests": self.rests,
+            "std": self.std.to_dict(),
+            "rests": None if self.rests is None else self.rests.to_dict(),
             "warnings": list(self.warnings),
-            "observability": self.observability,
-            "solver": self.solver,
-            "noise": self.noise,
+            "observability": self.observability.to_dict(),
+            "solver": self.solver.to_dict(),
+            "noise": None if self.noise is None else self.noise.to_dict(),
             "fit": self.fit,
-            **({"consistency": self.consistency} if self.consistency is not None else {}),
+            **({"consistency": self.consistency.to_dict()} if self.consistency is not None else {}),
         }
 
-    def to_json(self) -> str:
-        return json.dumps(self.to_dict(), indent=2)
+    def to_json(self, path=None) -> str:
+        """The calibration JSON (schema magyro.calibration/1); written whole or not at all when `path` is given."""
+        text = json.dumps(self.to_dict(), indent=2)
+        if path is not None:
+            from magyro.io import write_text_atomically
+
+            write_text_atomically(path, text + "\n")
+        return text
+
+    @classmethod
+    def from_json(cls, source) -> "Calibration":
+        """Read a calibration JSON (a path, or its text); refuse anything that is not one this version wrote."""
+        return calibration_from_dict(read_json(source))
 
     def table(self) -> str:
         """A short, truth-free human summary: estimate +/- one sigma (like the paper's Tables I/II)."""
         s = self.std
-        lines = []
-        lines.append("gyro K_g (scale on diagonal, non-orthogonality above), +/- 1 sigma")
+        lines = ["gyro K_g (scale on diagonal, non-orthogonality above), +/- 1 sigma"]
         for i in range(3):
-            cells = []
-            for j in range(3):
-                if j < i:
-                    cells.append(" " * 22)
-                else:
-                    cells.append(f"{self.K_g[i, j]:9.5f} +/- {s['K_g'][i][j]:8.5f}")
+            cells = [" " * 22 if j < i else f"{self.K_g[i, j]:9.5f} +/- {s.K_g[i][j]:8.5f}" for j in range(3)]
             lines.append("  " + "  ".join(cells))
-        b, sb = self.bias_deg_s, s["bias_deg_s"]
+        b, sb = self.bias_deg_s, s.bias_deg_s
         lines.append("gyro bias (deg/s)      " + "  ".join(f"{b[i]:+8.4f} +/- {sb[i]:.4f}" for i in range(3)))
-        e, se = self.euler_deg, s["misalignment_deg"]
+        e, se = self.euler_deg, s.misalignment_deg
         lines.append("misalignment C_b_m, roll pitch yaw (deg)  " + "  ".join(f"{e[i]:+8.3f} +/- {se[i]:.3f}" for i in range(3)))
-        h, sh = self.h, s["h"]
+        h, sh = self.h, s.h
         lines.append(f"magnetometer h ({self.mag_unit})  " + "  ".join(f"{h[i]:+.4g} +/- {sh[i]:.2g}" for i in range(3)))
-        lines.append("magnetometer R diagonal  " + "  ".join(f"{self.R[i, i]:.5g} +/- {s['R'][i][i]:.2g}" for i in range(3)))
+        lines.append("magnetometer R diagonal  " + "  ".join(f"{self.R[i, i]:.5g} +/- {s.R[i][i]:.2g}" for i in range(3)))
         if self.time_offset_estimated:
-            lines.append(f"magnetometer lag behind the gyro (ms)  {1e3 * self.time_offset_s:+.2f} +/- {1e3 * s['time_offset_s']:.2f}")
-        if self.rests and self.rests.get("bias_deg_s"):
-            rb = self.rests["bias_deg_s"]
-            lines.append(f"bias from {self.rests['seconds']:.1f} s of rest (deg/s)  " + "  ".join(f"{v:+8.4f}" for v in rb))
-        if self.consistency and "max_abs_z" in self.consistency:
+            lines.append(f"magnetometer lag behind the gyro (ms)  {1e3 * self.time_offset_s:+.2f} +/- {1e3 * s.time_offset_s:.2f}")
+        if self.rests is not None:
+            lines.append(f"bias from {self.rests.seconds:.1f} s of rest (deg/s)  "
+                         + "  ".join(f"{v:+8.4f}" for v in self.rests.bias_deg_s))
+        if self.consistency is not None and self.consistency.compared:
             c = self.consistency
-            lines.append(f"split-half check: the halves differ by {c['rms_z']:.1f} sigma RMS, at most {c['max_abs_z']:.1f} "
-                         f"({c['worst']}); above {c['max_rms_z']:.0f} RMS or {c['max_half_z']:.0f} is a warning")
+            lines.append(f"split-half check: the halves differ by {c.rms_z:.1f} sigma RMS, at most {c.max_abs_z:.1f} "
+                         f"({c.worst}); above {c.max_rms_z:.0f} RMS or {c.max_half_z:.0f} is a warning")
         ob = self.observability
-        lines.append(f"observability: rank {ob['rank']} of 12, condition {ob['condition']:.3g}")
+        lines.append(f"observability: rank {ob.rank} of 12, condition {ob.condition:.3g}")
         sv = self.solver
-        lines.append(f"solver: {sv['method']} {sv['status']}, {sv['iterations']} iterations, {sv['seconds']:.2f} s")
+        lines.append(f"solver: {sv.method} {sv.status}, {sv.iterations} iterations, {sv.seconds:.2f} s")
         lines.extend(f"warning: {w}" for w in self.warnings)
         return "\n".join(lines)
 
 
-def misalignment_vector(C_ref: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """d with C = C_ref Exp(d)."""
-    return so3.log_so3(C_ref.T @ C)
+def read_json(source) -> dict:
+    """The JSON object in a file (a path) or a string: InputError for a missing, unreadable or cut-short file."""
+    if isinstance(source, (str, Path)) and not str(source).lstrip().startswith("{"):
+        path = Path(source)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise InputError(f"{path}: no such file; pass the calibration JSON written by magyro solve") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(f"{path}: cannot be read ({exc})") from None
+        where = f"{path}: "
+    else:
+        text, where = str(source), ""
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        cut = " (the file looks cut short)" if exc.pos >= len(text.rstrip()) else ""
+        raise InputError(f"{where}not valid JSON: {exc.msg} at line {exc.lineno}{cut}") from None
+    if not isinstance(data, dict):
+        raise InputError(f"{where}a calibration is a JSON object, not a {type(data).__name__}")
+    return data
 
 
-def reported_vector(K, eps, S, h, m_i, C_ref, tau_s: float = 0.0) -> np.ndarray:
-    """The reported parameters as one vector (layout REPORTED), for uncertainty propagation."""
-    C, Kg = qr_split(K)
-    R = np.linalg.inv(S)
-    return np.concatenate([
-        [Kg[i, j] for i, j in UPPER],
-        np.rad2deg(C.T @ eps),
-        np.rad2deg(misalignment_vector(C_ref, C)),
-        [R[i, j] for i, j in UPPER],
-        h,
-        K.reshape(-1),
-        m_i,
-        [tau_s],
-    ])
+def check_schema(data: dict) -> None:
+    """Refuse a file that is not a calibration of this schema, or whose units are not the ones it was written in."""
+    schema = data.get("schema")
+    if schema != SCHEMA:
+        what = KNOWN_SCHEMAS.get(schema)
+        if what:
+            raise InputError(f"this is {what}; pass the calibration JSON written by magyro solve")
+        found = "no schema" if schema is None else f"schema {schema!r}"
+        raise InputError(f"not a magyro calibration: {found}, expected {SCHEMA!r} (written by magyro solve)")
+    units = data.get("units")
+    if units is None:
+        return  # files of this schema written before `units` existed: the units are those of the key names
+    expected = {**UNITS, "magnetometer": data.get("magnetometer", {}).get("unit")}
+    wrong = {k: v for k, v in units.items() if k in expected and v != expected[k]}
+    if wrong or not isinstance(units, dict):
+        raise InputError(f"the calibration's units {wrong or units} are not {expected}: this version of magyro "
+                         "cannot read them")
 
 
-def std_from_covariance(cov_out: np.ndarray) -> dict:
-    """Unpack the diagonal of the reported-vector covariance into the SPEC `std` layout."""
-    sd = np.sqrt(np.maximum(np.diag(cov_out), 0.0))
-    Kg = np.zeros((3, 3))
-    R = np.zeros((3, 3))
-    for n, (i, j) in enumerate(UPPER):
-        Kg[i, j] = sd[REPORTED["K_g"].start + n]
-        R[i, j] = sd[REPORTED["R"].start + n]
-    return {
-        "K_g": Kg,
-        "bias_deg_s": sd[REPORTED["bias_deg_s"]],
-        "misalignment_deg": sd[REPORTED["misalignment_deg"]],
-        "R": R,
-        "h": sd[REPORTED["h"]],
-        "K": sd[REPORTED["K"]].reshape(3, 3),
-        "field_i": sd[REPORTED["field_i"]],
-        "time_offset_s": sd[REPORTED["time_offset_s"]][0],
-    }
+def calibration_from_dict(data: dict) -> Calibration:
+    """The Calibration a calibration JSON describes (see `Calibration.from_json`)."""
+    check_schema(data)
+    gyro, mis, mag = (read_section(data, key) for key in ("gyro", "misalignment", "magnetometer"))
+    K_g, C = read_array(gyro, "K_g", (3, 3), "gyro"), read_array(mis, "C_b_m", (3, 3), "misalignment")
+    bias = read_array(gyro, "bias_rad_s", (3,), "gyro")
+    if not np.allclose(C.T @ C, np.eye(3), atol=1e-6) or np.linalg.det(C) < 0:
+        raise InputError("misalignment.C_b_m is not a proper rotation matrix")
+    std = read_section(data, "std")
+    unit = mag.get("unit")
+    if not isinstance(unit, str):
+        raise InputError("magnetometer.unit must be a string")
+    rests, noise, consistency = data.get("rests"), data.get("noise"), data.get("consistency")
+    return Calibration(
+        K_g=K_g, bias_rad_s=bias, K=read_array(gyro, "K", (3, 3), "gyro"),
+        eps_rad_s=read_array(gyro, "eps_m_rad_s", (3,), "gyro") if "eps_m_rad_s" in gyro else C @ bias, C_b_m=C,
+        R=read_array(mag, "R", (3, 3), "magnetometer"), h=read_array(mag, "h", (3,), "magnetometer"), mag_unit=unit,
+        field_i=read_array(data, "field_i", (3,), "the calibration"), std=Std.from_dict(std),
+        observability=Excitation.from_dict(read_section(data, "observability")),
+        solver=SolverReport.from_dict(read_section(data, "solver")),
+        noise=None if noise is None else NoiseReport.from_dict(noise), fit=data.get("fit") or {},
+        time_offset_s=read_number(data, "time_offset_s", "the calibration") if "time_offset_s" in data else 0.0,
+        time_offset_estimated=bool(data.get("time_offset_estimated", False)),
+        rests=None if rests is None else RestCheck.from_dict(rests), warnings=list(data.get("warnings", [])),
+        consistency=None if consistency is None else SplitCheck.from_dict(consistency),
+    )

@@ -17,13 +17,17 @@ half-difference is its split-half error estimate (one degree of freedom).
 """
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from magyro.errors import MagyroError
-from magyro.result.calibration import Calibration, misalignment_vector
+from magyro.result.reported import misalignment_vector
 from magyro.session import Session
+
+if TYPE_CHECKING:
+    from magyro.result.calibration import Calibration
 
 MAX_HALF_Z = 4.0   # one parameter; 12 unit normals exceed it with probability ~1e-3
 MAX_RMS_Z = 2.0    # all twelve together; simulated sessions reached 1.35, BROAD trials 2.1-3.1
@@ -33,6 +37,44 @@ QUANTITIES = (
     + [(f"bias_{a}_deg_s", "bias_deg_s", (k,)) for k, a in enumerate("xyz")]
     + [(f"misalignment_d{a}_deg", "misalignment_deg", (k,)) for k, a in enumerate("xyz")]
 )
+
+
+@dataclass(frozen=True)
+class SplitCheck:
+    """The split-half check of one calibration (JSON `consistency`).
+
+    `parameters` maps each compared gyro parameter to its two half values, their
+    difference, z, the reported std and the split-half std; `failed` lists the
+    halves that could not be calibrated alone (then nothing is compared).
+    """
+
+    spans_s: tuple
+    max_half_z: float = MAX_HALF_Z
+    max_rms_z: float = MAX_RMS_Z
+    parameters: dict = field(default_factory=dict)
+    worst: str | None = None
+    max_abs_z: float = float("nan")
+    rms_z: float = float("nan")
+    failed: tuple = ()
+
+    @property
+    def compared(self) -> bool:
+        return not self.failed and bool(self.parameters)
+
+    def to_dict(self) -> dict:
+        out = {"spans_s": [list(s) for s in self.spans_s], "max_half_z": self.max_half_z, "max_rms_z": self.max_rms_z}
+        if self.failed:
+            out["failed"] = list(self.failed)
+        else:
+            out.update(parameters=self.parameters, worst=self.worst, max_abs_z=self.max_abs_z, rms_z=self.rms_z)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "SplitCheck":
+        return cls(tuple(tuple(s) for s in data.get("spans_s", ())), float(data.get("max_half_z", MAX_HALF_Z)),
+                   float(data.get("max_rms_z", MAX_RMS_Z)), dict(data.get("parameters", {})), data.get("worst"),
+                   float(data.get("max_abs_z", float("nan"))), float(data.get("rms_z", float("nan"))),
+                   tuple(data.get("failed", ())))
 
 
 def gyro_values(cal: Calibration, C_b_m_ref: np.ndarray) -> dict[str, float]:
@@ -45,7 +87,7 @@ def gyro_values(cal: Calibration, C_b_m_ref: np.ndarray) -> dict[str, float]:
 
 def gyro_stds(cal: Calibration) -> dict[str, float]:
     """Their reported one-sigma, by name."""
-    return {name: float(np.asarray(cal.std[key])[idx]) for name, key, idx in QUANTITIES}
+    return {name: float(np.asarray(getattr(cal.std, key))[idx]) for name, key, idx in QUANTITIES}
 
 
 def half_spans_s(session: Session) -> list[tuple[float, float]]:
@@ -63,7 +105,7 @@ def half_options(options, cal: Calibration):
     ellipsoid's degeneracy checks) comes from third differences, and the
     solve's re-weighting finds its effective level from the residuals.
     """
-    return replace(options, gyro_noise_density_rad_s_sqrt_hz=cal.noise["gyro_density_rad_s_sqrt_hz"], trim_rests=False)
+    return replace(options, gyro_noise_density_rad_s_sqrt_hz=cal.noise.gyro_density_rad_s_sqrt_hz, trim_rests=False)
 
 
 def compare_halves(full: Calibration, halves: list[Calibration]) -> dict:
@@ -85,7 +127,7 @@ def compare_halves(full: Calibration, halves: list[Calibration]) -> dict:
     return {"parameters": rows, "worst": worst, "max_abs_z": abs(rows[worst]["z"]), "rms_z": rms_z}
 
 
-def split_check(moving: Session, full: Calibration, options, calibrate) -> dict:
+def split_check(moving: Session, full: Calibration, options, calibrate) -> SplitCheck:
     """Calibrate both halves of the moving session and compare them (see the module docstring).
 
     `calibrate(session, options)` is passed in so this module does not import the solver.
@@ -99,26 +141,24 @@ def split_check(moving: Session, full: Calibration, options, calibrate) -> dict:
             halves.append(calibrate(moving.within(t0, t1), opts))
         except MagyroError as exc:
             failures.append(f"{('first', 'second')[k]} half ({t0:.1f}-{t1:.1f} s): {exc}")
-    report = {"spans_s": [list(s) for s in spans], "max_half_z": MAX_HALF_Z, "max_rms_z": MAX_RMS_Z}
+    spans_s = tuple(tuple(s) for s in spans)
     if failures:
-        report["failed"] = failures
-        return report
-    report.update(compare_halves(full, halves))
-    return report
+        return SplitCheck(spans_s, failed=tuple(failures))
+    return SplitCheck(spans_s, **compare_halves(full, halves))
 
 
-def split_warning(report: dict) -> str | None:
+def split_warning(report: SplitCheck) -> str | None:
     """A warning when the halves disagree beyond their std, or could not be compared."""
-    if "failed" in report:
-        return ("the split-half check could not calibrate each half on its own (" + "; ".join(report["failed"])
+    if report.failed:
+        return ("the split-half check could not calibrate each half on its own (" + "; ".join(report.failed)
                 + "): record longer so that each half excites every parameter")
-    if report["rms_z"] <= MAX_RMS_Z and report["max_abs_z"] <= MAX_HALF_Z:
+    if report.rms_z <= MAX_RMS_Z and report.max_abs_z <= MAX_HALF_Z:
         return None
-    row = report["parameters"][report["worst"]]
+    row = report.parameters[report.worst]
     return (
-        f"the two halves of the recording disagree by {report['rms_z']:.1f} sigma RMS over the gyro parameters "
-        f"(most on {report['worst']}: {row['difference']:.4g}, {report['max_abs_z']:.1f} sigma): the model does not "
+        f"the two halves of the recording disagree by {report.rms_z:.1f} sigma RMS over the gyro parameters "
+        f"(most on {report.worst}: {row['difference']:.4g}, {report.max_abs_z:.1f} sigma): the model does not "
         f"hold throughout (field not homogeneous along the path, magnetometer not linear, or the sensor changed), "
-        f"so the reported std understates the error by about {report['rms_z']:.1f}x; each parameter's split_std "
-        f"in the JSON is the more honest one-sigma ({row['split_std']:.3g} for {report['worst']})"
+        f"so the reported std understates the error by about {report.rms_z:.1f}x; each parameter's split_std "
+        f"in the JSON is the more honest one-sigma ({row['split_std']:.3g} for {report.worst})"
     )

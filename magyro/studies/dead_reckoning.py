@@ -4,7 +4,7 @@ The attitude is integrated from the gyro twice, with the same integrator
 (`so3.integrate_body_rates`):
 
     raw          omega = y_g                       (K_g = I, bias 0)
-    calibrated   omega = K_g y_g + eps_b           (the gyro frame b, SPEC section 1)
+    calibrated   omega = K_g y_g + eps_b           (the gyro frame b, docs/spec.md section 1)
 
 **With truth quaternions** (`Session.t_quat_s`, `quat_wxyz`; for BROAD the optical
 orientation, IMU frame to ENU) the error at each truth instant t is the angle of
@@ -46,6 +46,7 @@ import numpy as np
 
 from magyro import so3
 from magyro.errors import InputError
+from magyro.result.calibration import Calibration
 from magyro.session import Session
 
 SCHEMA = "magyro.validation/1"
@@ -140,92 +141,36 @@ class ValidationReport:
 # --------------------------------------------------------------------------- calibration input
 
 
-def calibration_gyro(calibration) -> dict:
-    """K_g (3x3), bias_rad_s (3,), and R, h when present, from whatever was passed.
-
-    Accepts a `magyro.result.calibration.Calibration`, a dict laid out like the calibration JSON (or
-    the simulator's truth JSON: same `gyro` keys), a path to such a JSON file, or None
-    (identity: the calibrated gyro is the raw gyro).
-    """
+def as_calibration(calibration) -> tuple[Calibration, str]:
+    """(the calibration, where it came from): a `Calibration`, a calibration JSON file (read by
+    `Calibration.from_json`, which refuses anything else), or None (identity: the raw gyro)."""
     if calibration is None:
-        return {"K_g": np.eye(3), "bias_rad_s": np.zeros(3), "from": "identity (no calibration)"}
+        return Calibration.from_parameters(np.eye(3), np.zeros(3), method="identity"), "identity (no calibration)"
+    if isinstance(calibration, Calibration):
+        return calibration, "Calibration object"
     if isinstance(calibration, (str, Path)):
-        path = Path(calibration)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise InputError(f"{path}: no such file; pass the calibration JSON written by magyro solve") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(f"{path}: cannot be read ({exc})") from None
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise InputError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-        out = calibration_gyro(data)
-        out["from"] = str(path)
-        return out
-    if hasattr(calibration, "K_g") and hasattr(calibration, "bias_rad_s"):
-        out = {"K_g": _matrix(calibration.K_g, "K_g"), "bias_rad_s": _vector(calibration.bias_rad_s, "bias_rad_s"),
-               "from": "Calibration object"}
-        if getattr(calibration, "R", None) is not None and getattr(calibration, "h", None) is not None:
-            out["R"], out["h"] = _matrix(calibration.R, "R"), _vector(calibration.h, "h")
-        return out
-    if not isinstance(calibration, dict):
-        raise InputError(f"a calibration must be a Calibration, a dict or a JSON path, not {type(calibration).__name__}")
-    gyro = calibration.get("gyro")
-    if not isinstance(gyro, dict) or "K_g" not in gyro or not ("bias_rad_s" in gyro or "bias_deg_s" in gyro):
-        raise InputError("the calibration has no gyro.K_g and gyro.bias_rad_s; pass a calibration JSON "
-                         "(schema magyro.calibration/1) written by magyro solve")
-    bias = (_vector(gyro["bias_rad_s"], "gyro.bias_rad_s") if "bias_rad_s" in gyro
-            else np.deg2rad(_vector(gyro["bias_deg_s"], "gyro.bias_deg_s")))
-    out = {"K_g": _matrix(gyro["K_g"], "gyro.K_g"), "bias_rad_s": bias,
-           "from": str(calibration.get("schema", "dict"))}
-    mag = calibration.get("magnetometer")
-    if isinstance(mag, dict) and "R" in mag and "h" in mag:
-        try:
-            out["R"], out["h"] = _matrix(mag["R"], "magnetometer.R"), _vector(mag["h"], "magnetometer.h")
-        except InputError:
-            pass  # the magnetometer is only used for a diagnostic
-    return out
-
-
-def _matrix(value, name: str) -> np.ndarray:
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"calibration {name} is not a 3x3 matrix of numbers") from None
-    if a.shape != (3, 3) or not np.isfinite(a).all():
-        raise InputError(f"calibration {name} must be a 3x3 matrix of finite numbers, got shape {a.shape}")
-    return a
-
-
-def _vector(value, name: str) -> np.ndarray:
-    try:
-        a = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise InputError(f"calibration {name} is not a vector of 3 numbers") from None
-    if a.shape != (3,) or not np.isfinite(a).all():
-        raise InputError(f"calibration {name} must be 3 finite numbers, got shape {a.shape}")
-    return a
+        return Calibration.from_json(calibration), str(calibration)
+    raise InputError(f"a calibration must be a Calibration or the path of a calibration JSON, "
+                     f"not {type(calibration).__name__}")
 
 
 # --------------------------------------------------------------------------- validation
 
 
-def dead_reckon(session: Session, K_g: np.ndarray, bias_rad_s: np.ndarray) -> np.ndarray:
-    """C(t_k) body-to-start from omega = K_g y_g + eps_b at the gyro times; C(t_0) = I."""
-    omega = session.gyro_rad_s @ np.asarray(K_g, dtype=float).T + np.asarray(bias_rad_s, dtype=float)
-    return so3.integrate_body_rates(session.t_gyro_s, omega)
+def dead_reckon(session: Session, calibration: Calibration) -> np.ndarray:
+    """C(t_k) body-to-start from the calibrated rates omega = K_g y_g + eps_b at the gyro times; C(t_0) = I."""
+    omega_rad_s, _ = calibration.apply(session.gyro_rad_s)
+    return so3.integrate_body_rates(session.t_gyro_s, omega_rad_s)
 
 
 def validate(session: Session, calibration=None) -> ValidationReport:
     """Dead-reckon with the raw and the calibrated gyro; errors against truth, or closure drift."""
-    cal = calibration_gyro(calibration)
+    cal = as_calibration(calibration)
     if len(session.t_gyro_s) < 2:
         raise InputError("the session has fewer than 2 gyro samples; nothing to integrate")
     attitudes = {
-        "raw": dead_reckon(session, np.eye(3), np.zeros(3)),
-        "calibrated": dead_reckon(session, cal["K_g"], cal["bias_rad_s"]),
+        "raw": dead_reckon(session, as_calibration(None)[0]),
+        "calibrated": dead_reckon(session, cal[0]),
     }
     notes = []
     if calibration is None:
@@ -357,16 +302,14 @@ def _closure_report(session, cal, attitudes, notes) -> ValidationReport:
                             diagnostics=diagnostics, notes=notes)
 
 
-def _pose_mismatch(session: Session, cal: dict) -> dict:
+def _pose_mismatch(session: Session, cal: tuple[Calibration, str]) -> dict:
     """Angle between the mean sensor directions over the first and last POSE_WINDOW_S."""
     out = {}
     if session.t_acc_s is not None and session.acc_m_s2 is not None and len(session.t_acc_s) > 1:
         angle = _end_direction_angle(session.t_acc_s, session.acc_m_s2)
         if angle is not None:
             out["pose_mismatch_acc_deg"] = angle
-    mag = session.mag
-    if "R" in cal and "h" in cal:
-        mag = (mag - cal["h"]) @ cal["R"].T
+    _, mag = cal[0].apply(session.gyro_rad_s[:0], session.mag)
     angle = _end_direction_angle(session.t_mag_s, mag)
     if angle is not None:
         out["pose_mismatch_mag_deg"] = angle
@@ -385,9 +328,10 @@ def _end_direction_angle(t: np.ndarray, v: np.ndarray) -> float | None:
     return float(np.rad2deg(np.arccos(np.clip(a @ b / (na * nb), -1.0, 1.0))))
 
 
-def _cal_public(cal: dict) -> dict:
-    return {"K_g": cal["K_g"], "bias_rad_s": cal["bias_rad_s"],
-            "bias_deg_s": np.rad2deg(cal["bias_rad_s"]), "from": cal["from"]}
+def _cal_public(cal: tuple[Calibration, str]) -> dict:
+    calibration, source = cal
+    return {"K_g": calibration.K_g, "bias_rad_s": calibration.bias_rad_s, "bias_deg_s": calibration.bias_deg_s,
+            "from": source}
 
 
 # --------------------------------------------------------------------------- figure
@@ -402,7 +346,7 @@ def plot_validation(report: ValidationReport, path) -> None:
     except ImportError:
         raise InputError("plotting needs matplotlib; install it (pip install 'magyro[plot]' or "
                          "pip install matplotlib)") from None
-    from magyro.io.sessions import write_atomically
+    from magyro.io import write_atomically
 
     path = Path(path)
     fmt = path.suffix.lower().lstrip(".") or "png"

@@ -1,0 +1,187 @@
+"""The typed parts of a calibration: its one-sigma, the excitation it was solved on, the solver's
+report, the noise levels it used and the rests' check. Each writes and reads its own piece of
+the calibration JSON (`magyro.result.calibration`), with the same keys as its fields.
+
+The shape of every array is checked when a piece is read back, so a file
+that was cut short or edited by hand is refused with the key it fails on.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from magyro.errors import InputError
+
+
+def as_list(a) -> list:
+    """A numpy array (or number) as plain JSON lists of floats."""
+    return np.asarray(a, dtype=float).tolist()
+
+
+def read_array(data: dict, key: str, shape: tuple, where: str) -> np.ndarray:
+    """data[key] as a finite float array of `shape`; InputError naming `where.key` otherwise."""
+    if key not in data:
+        raise InputError(f"{where}.{key} is missing")
+    try:
+        a = np.asarray(data[key], dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{where}.{key} is not an array of numbers") from None
+    if a.shape != shape:
+        raise InputError(f"{where}.{key} must have shape {shape}, not {a.shape}")
+    if not np.isfinite(a).all():
+        raise InputError(f"{where}.{key} holds a NaN or an infinity")
+    return a
+
+
+def read_number(data: dict, key: str, where: str, kind=float):
+    """data[key] as a number of `kind`; InputError naming `where.key` otherwise."""
+    if key not in data:
+        raise InputError(f"{where}.{key} is missing")
+    value = data[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"{where}.{key} must be a number, not {value!r}")
+    return kind(value)
+
+
+def read_section(data: dict, key: str, where: str = "the calibration") -> dict:
+    """data[key] as an object; InputError naming the key otherwise."""
+    value = data.get(key)
+    if not isinstance(value, dict):
+        raise InputError(f"{where} has no object '{key}'" if key not in data else f"'{key}' must be an object")
+    return value
+
+
+@dataclass(frozen=True)
+class Std:
+    """One-sigma of every reported parameter, laid out like the parameters (JSON `std`).
+
+    `misalignment_deg` is the std of d in C_b_m(true) = C_b_m(est) Exp(d); `K_g`
+    and `R` are upper triangular like the matrices they belong to.
+    """
+
+    K_g: np.ndarray                 # (3, 3)
+    bias_deg_s: np.ndarray          # (3,)
+    misalignment_deg: np.ndarray    # (3,)
+    R: np.ndarray                   # (3, 3), magnetometer unit^-1
+    h: np.ndarray                   # (3,), magnetometer unit
+    K: np.ndarray                   # (3, 3)
+    field_i: np.ndarray             # (3,)
+    time_offset_s: float = 0.0
+
+    SHAPES = {"K_g": (3, 3), "bias_deg_s": (3,), "misalignment_deg": (3,), "R": (3, 3), "h": (3,), "K": (3, 3),
+              "field_i": (3,)}
+
+    def to_dict(self) -> dict:
+        out = {name: as_list(getattr(self, name)) for name in self.SHAPES}
+        out["time_offset_s"] = float(self.time_offset_s)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "Std":
+        arrays = {name: read_array(data, name, shape, "std") for name, shape in cls.SHAPES.items()}
+        return cls(**arrays, time_offset_s=read_number(data, "time_offset_s", "std") if "time_offset_s" in data else 0.0)
+
+    @classmethod
+    def zero(cls) -> "Std":
+        """No uncertainty: parameters taken as exact (a truth, or a calibration from elsewhere)."""
+        return cls(**{name: np.zeros(shape) for name, shape in cls.SHAPES.items()})
+
+
+@dataclass(frozen=True)
+class Excitation:
+    """The observability gate's verdict on the motion the calibration was solved on (JSON `observability`)."""
+
+    rank: int
+    condition: float
+    tolerance: float
+    eigenvalues_normalised: tuple = ()
+
+    @classmethod
+    def of(cls, analysis) -> "Excitation":
+        """From an `magyro.observability.gate.ObservabilityAnalysis`."""
+        return cls(int(analysis.rank), float(analysis.condition), float(analysis.tolerance),
+                   tuple(float(v) for v in analysis.eigenvalues_normalised))
+
+    def to_dict(self) -> dict:
+        return {"rank": self.rank, "condition": self.condition, "tolerance": self.tolerance,
+                "eigenvalues_normalised": list(self.eigenvalues_normalised)}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "Excitation":
+        where = "observability"
+        return cls(read_number(data, "rank", where, int), read_number(data, "condition", where),
+                   float(data.get("tolerance", float("nan"))), tuple(data.get("eigenvalues_normalised", ())))
+
+
+@dataclass(frozen=True)
+class SolverReport:
+    """How the method got there (JSON `solver`): the common fields, then the method's own in `details`."""
+
+    method: str
+    status: str
+    iterations: int
+    seconds: float
+    total_seconds: float = float("nan")
+    details: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"method": self.method, "status": self.status, "iterations": self.iterations, "seconds": self.seconds,
+                "total_seconds": self.total_seconds, **self.details}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "SolverReport":
+        where = "solver"
+        if not isinstance(data.get("method"), str) or not isinstance(data.get("status"), str):
+            raise InputError("solver.method and solver.status must be strings")
+        common = {f.name for f in fields(cls)} - {"details"}
+        return cls(data["method"], data["status"], read_number(data, "iterations", where, int),
+                   read_number(data, "seconds", where), float(data.get("total_seconds", float("nan"))),
+                   {k: v for k, v in data.items() if k not in common})
+
+
+@dataclass(frozen=True)
+class NoiseReport:
+    """The noise levels that weighted the fit (JSON `noise`); `mag_std` in the magnetometer's unit."""
+
+    gyro_density_rad_s_sqrt_hz: float
+    mag_std: float
+    mag_std_estimated: float | None = None   # before the least squares' re-weighting
+    source: str = ""
+
+    def to_dict(self) -> dict:
+        out = {"gyro_density_rad_s_sqrt_hz": self.gyro_density_rad_s_sqrt_hz, "mag_std": self.mag_std}
+        if self.mag_std_estimated is not None:
+            out["mag_std_estimated"] = self.mag_std_estimated
+        if self.source:
+            out["source"] = self.source
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "NoiseReport":
+        where = "noise"
+        return cls(read_number(data, "gyro_density_rad_s_sqrt_hz", where), read_number(data, "mag_std", where),
+                   data.get("mag_std_estimated"), str(data.get("source", "")))
+
+
+@dataclass(frozen=True)
+class RestCheck:
+    """The rests at both ends and the bias they imply, eps_b = -K_g mean(y_rest), against the estimate (JSON `rests`)."""
+
+    segments_s: tuple
+    seconds: float
+    gyro_mean_rad_s: np.ndarray
+    bias_deg_s: np.ndarray
+    estimate_minus_rest_deg_s: np.ndarray
+
+    def to_dict(self) -> dict:
+        return {"segments_s": [list(map(float, s)) for s in self.segments_s], "seconds": float(self.seconds),
+                "gyro_mean_rad_s": as_list(self.gyro_mean_rad_s), "bias_deg_s": as_list(self.bias_deg_s),
+                "estimate_minus_rest_deg_s": as_list(self.estimate_minus_rest_deg_s)}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "RestCheck":
+        where = "rests"
+        return cls(tuple(tuple(s) for s in data.get("segments_s", ())), read_number(data, "seconds", where),
+                   read_array(data, "gyro_mean_rad_s", (3,), where), read_array(data, "bias_deg_s", (3,), where),
+                   read_array(data, "estimate_minus_rest_deg_s", (3,), where))
