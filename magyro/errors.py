@@ -1,12 +1,13 @@
-"""The three ways a run can end badly, each with its SPEC exit code.
+"""The three ways a run can end badly, each with its exit code (docs/spec.md section 3).
 
 The CLI turns these into one plain message on stderr and the exit code; the
-Python API lets them propagate so callers can catch them.
+Python API lets them propagate so callers can catch them. `one_line` puts any
+exception's message on one line, for such messages and for logs of failed runs.
 """
 
 
 class MagyroError(Exception):
-    """Base class; `exit_code` is the process exit code of SPEC section 3."""
+    """Base class; `exit_code` is the process exit code of docs/spec.md section 3."""
 
     exit_code = 1
 
@@ -31,3 +32,9 @@ class SolverError(MagyroError):
     """The solver failed to produce a calibration."""
 
     exit_code = 1
+
+
+def one_line(exc: BaseException, limit: int | None = 200) -> str:
+    """An exception's message on one line (cut to `limit` characters; None keeps it whole)."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if limit is None else text[:limit]

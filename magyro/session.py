@@ -1,4 +1,4 @@
-"""The session: one recording of gyroscope and magnetometer samples (SPEC section 2).
+"""The session: one recording of gyroscope and magnetometer samples (docs/spec.md section 2).
 
 `Session` holds each sensor on its own time base, in SI units for the gyro
 (rad/s) and the magnetometer's own unit. Loading and validation live in

@@ -1,4 +1,4 @@
-"""Tests for magyro.io: loading, validation, writing, atomic output."""
+"""Tests for magyro.io: loading session files, the input checks, writing, atomic output."""
 from __future__ import annotations
 
 import os
@@ -9,9 +9,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from magyro.io import sessions
-from magyro.errors import InputError
-from magyro.io.sessions import (MAX_PLAUSIBLE_RATE_RAD_S, MIN_SAMPLES, load_session, write_session,
+from magyro.errors import InputError, one_line
+from magyro.io import (MAX_PLAUSIBLE_RATE_RAD_S, MIN_SAMPLES, load_session, session_file, write_session,
                        write_text_atomically)
 from magyro.session import Session
 
@@ -450,7 +449,7 @@ def test_failure_mid_write_leaves_no_partial_file(tmp_path, monkeypatch):
             f.write(b"PAR1 partial")
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(sessions.pq, "write_table", half_then_fail)
+    monkeypatch.setattr(session_file.pq, "write_table", half_then_fail)
     with pytest.raises(RuntimeError, match="disk full"):
         write_session(s, target)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.csv"]
@@ -479,8 +478,59 @@ def test_the_solve_path_imports_neither_pandas_nor_scipy():
     from pathlib import Path
 
     shipped = Path(__file__).resolve().parents[1] / "data" / "broad-02.parquet"
-    code = ("import sys, magyro.cli, magyro.nls.solve, magyro.result.consistency, magyro.io.sessions; "
-            f"magyro.io.sessions.load_session({str(shipped)!r}); "
+    code = ("import sys, magyro.cli, magyro.nls.solve, magyro.result.consistency, magyro.io; "
+            f"magyro.io.load_session({str(shipped)!r}); "
             "print(sorted(m for m in ('pandas', 'scipy', 'pyarrow.compute') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]", out.stdout
+
+
+def test_magyro_io_imports_each_name_on_first_use():
+    """`import magyro.io` loads nothing heavy; atomic output needs no pyarrow, an importer loads pandas."""
+    import subprocess
+    import sys
+
+    code = ("import sys\n"
+            "heavy = lambda: [m for m in ('pyarrow', 'pandas', 'scipy') if m in sys.modules]\n"
+            "import magyro.io as io\n"
+            "print(heavy())\n"
+            "from magyro.io import write_text_atomically\n"
+            "print(heavy())\n"
+            "from magyro.io import load_session\n"
+            "print(heavy())\n"
+            "print(io.import_csv.__module__, io.convert_broad.__module__, heavy())\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.splitlines() == ["[]", "[]", "['pyarrow']",
+                                       "magyro.io.csv_export magyro.io.broad ['pyarrow', 'pandas']"], out.stdout
+
+
+def test_every_public_name_of_magyro_io_is_what_it_says():
+    """No public name is shadowed by a submodule of the same name, whatever was imported first."""
+    import inspect
+    import subprocess
+    import sys
+
+    import magyro.io
+
+    code = ("import importlib, inspect, magyro.io as io\n"
+            "for m in ('atomic', 'broad', 'checks', 'columns', 'csv_export', 'cutting', 'session_file'):\n"
+            "    importlib.import_module('magyro.io.' + m)\n"
+            "print(sorted(n for n in io.__all__ if inspect.ismodule(getattr(io, n))))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]", out.stdout
+    for name in magyro.io.__all__:
+        value = getattr(magyro.io, name)
+        assert not inspect.ismodule(value), name
+        if callable(value):
+            assert value.__module__.startswith("magyro.io.") and value.__name__ == name, name
+    with pytest.raises(AttributeError, match="has no attribute 'no_such_name'"):
+        magyro.io.no_such_name
+    assert magyro.io.__all__ == list(magyro.io._EXPORTS)
+    assert {"import_broad", "import_csv", "load_session"} <= set(dir(magyro.io))
+
+
+def test_one_line():
+    assert one_line(ValueError("bad\n  value\tat  row 3 ")) == "bad value at row 3"
+    assert one_line(KeyError()) == "KeyError"
+    assert one_line(RuntimeError("x" * 300)) == "x" * 200
+    assert one_line(RuntimeError("x" * 300), limit=None) == "x" * 300
