@@ -4,11 +4,11 @@
 
 For each problem (noise seed 0) it times, in this process:
 
-- **filter**: the per-sample loop alone (`ekf.run_filter` on a fresh
-  StreamingCalibrator), with the 9 magnetometer consider states (default, 26
-  states) and without them (17 states, the paper's filter);
-- **ekf_calibrate**: the whole two-step method (noise, gate, ellipsoid,
-  Newton, eq. 13, filter, std), wall time.
+- **filter**: the per-sample loop alone (`magyro.ekf.streaming.run_filter` on a
+  fresh StreamingCalibrator), with the 9 magnetometer consider states (default,
+  26 states) and without them (17 states, the paper's filter);
+- **calibrate**: the whole two-step method, `EKF().calibrate_with_history`
+  (noise, gate, ellipsoid, Newton, eq. 13, filter, std, history), wall time.
 
 Samples = gyro samples + magnetometer samples fed to the filter. Median of
 `--repeat` runs. Wall-clock numbers depend on the machine and its load; the
@@ -22,17 +22,21 @@ import statistics
 import time
 
 from magyro import ekf
-from magyro.nls.solve import Options, prepare
-from magyro.studies.simulate import load_problem, simulate
+from magyro.ekf.prior import initial_estimate
+from magyro.ekf.streaming import run_filter
+from magyro.front.prepare import prepare
+from magyro.options import Options
+from magyro.studies.scenario import load_problem
+from magyro.studies.simulate import simulate
 
 SEED = 0
 
 
-def filter_run(session, prep, ref, init, consider: bool) -> tuple[float, int]:
+def filter_run(session, prep, ref, init, consider: bool) -> tuple[float, int, float]:
     f = ekf.StreamingCalibrator(ref.R, ref.h, init.K0, init.eps0, None, prep.gyro_density, prep.sigma_mag,
                                 P0=init.P0, cov_Rh=ref.covariance if consider else None)
     start, cpu = time.perf_counter(), time.process_time()
-    ekf.run_filter(session, f)
+    run_filter(session, f)
     seconds, cpu_s = time.perf_counter() - start, time.process_time() - cpu
     return seconds, f.gyro_samples + f.mag_updates, cpu_s
 
@@ -42,7 +46,7 @@ def bench(problem_name: str, repeat: int) -> dict:
     prep = prepare(session, Options())
     s = prep.session
     ref = ekf.refine_magnetometer(s.mag, prep.fit.R, prep.fit.h, prep.sigma_mag)
-    init = ekf.initial_estimate(s, ref)
+    init = initial_estimate(s, ref)
     out = {"problem": problem_name, "duration_s": s.duration_s, "gyro_hz": s.gyro_rate_hz, "mag_hz": s.mag_rate_hz}
     for consider in (True, False):
         runs = [filter_run(s, prep, ref, init, consider) for _ in range(repeat)]
@@ -56,16 +60,16 @@ def bench(problem_name: str, repeat: int) -> dict:
     walls = []
     for _ in range(repeat):
         start = time.perf_counter()
-        cal, _ = ekf.ekf_calibrate(session)
+        ekf.EKF().calibrate_with_history(session)
         walls.append(time.perf_counter() - start)
-    out["ekf_calibrate_s"] = statistics.median(walls)
-    out["ekf_calibrate_samples_per_s"] = out["samples"] / out["ekf_calibrate_s"]
+    out["calibrate_s"] = statistics.median(walls)
+    out["calibrate_samples_per_s"] = out["samples"] / out["calibrate_s"]
     return out
 
 
 def table(rows: list[dict]) -> str:
     lines = ["| problem | samples | filter 26 states s | samples/s | per CPU s | filter 17 states s | samples/s "
-             "| per CPU s | ekf_calibrate s | samples/s |",
+             "| per CPU s | EKF calibrate s | samples/s |",
              "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|"]
     for r in rows:
         lines.append(f"| {r['problem']} ({r['duration_s']:.0f} s, gyro {r['gyro_hz']:.0f} Hz, mag {r['mag_hz']:.0f} Hz) "
@@ -73,7 +77,7 @@ def table(rows: list[dict]) -> str:
                      f"| {r['filter_26_samples_per_cpu_s']:,.0f} "
                      f"| {r['filter_17_s']:.2f} | {r['filter_17_samples_per_s']:,.0f} "
                      f"| {r['filter_17_samples_per_cpu_s']:,.0f} "
-                     f"| {r['ekf_calibrate_s']:.2f} | {r['ekf_calibrate_samples_per_s']:,.0f} |")
+                     f"| {r['calibrate_s']:.2f} | {r['calibrate_samples_per_s']:,.0f} |")
     return "\n".join(lines)
 
 

@@ -1,6 +1,6 @@
 """Rotations in numpy: skew, exponential, logarithm, Euler angles, quaternions.
 
-Conventions (SPEC section 1): `C_a_b` maps vectors from frame b to frame a;
+Conventions (docs/spec.md section 1): `C_a_b` maps vectors from frame b to frame a;
 Euler angles are `C = Rz(yaw) Ry(pitch) Rx(roll)`, returned as
 `[roll, pitch, yaw]`. Functions accept a single vector/matrix or a stack along
 the first axis.
@@ -178,3 +178,18 @@ def integrate_body_rates(t_s: np.ndarray, omega_rad_s: np.ndarray, C0: np.ndarra
     steps = exp_quat(0.5 * (wa + wb) * dt + (dt**2 / 12.0) * np.cross(wa, wb))
     q0 = np.array([[1.0, 0.0, 0.0, 0.0]]) if C0 is None else dcm_to_quat(C0)[None]
     return quat_to_dcm(cumulative_quat_product(np.concatenate([q0, steps])))
+
+
+def tangent_basis(m: np.ndarray) -> np.ndarray:
+    """3x2 orthonormal basis [b1, m x b1] of the plane normal to the unit vector m.
+
+    b1 = m x e / |m x e|, e the axis along m's smallest component (so m x e
+    is never small); the field's two degrees of freedom live in this plane
+    (the joint least squares and the EKF both parametrise m^i this way).
+    """
+    m = np.asarray(m, dtype=float)
+    a = np.zeros(3)
+    a[int(np.argmin(np.abs(m)))] = 1.0
+    b1 = np.cross(m, a)
+    b1 /= np.linalg.norm(b1)
+    return np.column_stack([b1, np.cross(m, b1)])

@@ -8,11 +8,15 @@ import numpy as np
 import pytest
 
 from magyro import ekf, so3
-from magyro.front import ellipsoid
-from magyro.nls.solve import Options, prepare
+from magyro.ekf.history import BIAS_NAMES, FIELD_NAMES, HISTORY_COLUMNS, HISTORY_ROWS
+from magyro.ekf.prior import initial_estimate
 from magyro.errors import InputError
-from magyro.result.calibration import UPPER
-from magyro.studies.simulate import load_problem, simulate
+from magyro.front import ellipsoid
+from magyro.front.prepare import prepare
+from magyro.options import Options
+from magyro.result.reported import UPPER
+from magyro.studies.scenario import load_problem
+from magyro.studies.simulate import simulate
 
 # Table I of the paper, 3 sigma
 TABLE1_SCALE = 900e-6
@@ -25,7 +29,7 @@ TABLE1_MISALIGNMENT_DEG = 0.06
 def paper1():
     problem = load_problem("paper-table1")
     session, truth = simulate(problem, 1)
-    cal, history = ekf.ekf_calibrate(session)
+    cal, history = ekf.EKF().calibrate_with_history(session)
     return problem, session, truth, cal, history
 
 
@@ -142,11 +146,11 @@ def test_reported_std_covers_the_actual_error(paper1):
     e = errors(cal, truth)
     iu = np.triu_indices(3)
     pairs = [
-        (e["K_g"][iu], cal.std["K_g"][iu]),
-        (e["bias_deg_s"], cal.std["bias_deg_s"]),
-        (e["misalignment_deg"], cal.std["misalignment_deg"]),
-        (e["R"][iu], cal.std["R"][iu]),
-        (e["h"], cal.std["h"]),
+        (e["K_g"][iu], cal.std.K_g[iu]),
+        (e["bias_deg_s"], cal.std.bias_deg_s),
+        (e["misalignment_deg"], cal.std.misalignment_deg),
+        (e["R"][iu], cal.std.R[iu]),
+        (e["h"], cal.std.h),
     ]
     z = np.concatenate([err / sd for err, sd in pairs])
     assert np.all(np.abs(z) < 4.0), np.round(z, 1)
@@ -156,17 +160,25 @@ def test_reported_std_covers_the_actual_error(paper1):
 
 def test_calibration_fields_like_the_nls(paper1):
     _, session, _, cal, _ = paper1
-    assert cal.solver["method"] == "ekf"
-    assert cal.solver["status"] == "done"
-    assert cal.solver["iterations"] == cal.solver["gyro_samples"] + cal.solver["mag_updates"]
-    assert cal.solver["iterations"] >= len(session.t_gyro_s) + len(session.t_mag_s) - 3
-    assert cal.solver["seconds"] > 0
-    assert cal.observability["rank"] == 12
+    assert cal.solver.method == "ekf"
+    assert cal.solver.status == "done"
+    assert cal.solver.iterations == cal.solver.details["gyro_samples"] + cal.solver.details["mag_updates"]
+    assert cal.solver.iterations >= len(session.t_gyro_s) + len(session.t_mag_s) - 3
+    assert cal.solver.seconds > 0
+    assert cal.observability.rank == 12
     d = cal.to_dict()
     for key in ("K_g", "bias_deg_s", "misalignment_deg", "R", "h"):
         assert key in d["std"]
     assert np.isclose(np.linalg.norm(cal.field_i), 1.0)
     assert 2.5 < cal.fit["normalised_innovation_squared_mean"] < 3.5   # 3 for a consistent filter
+
+
+def test_calibrate_is_the_calibration_of_calibrate_with_history(paper1):
+    _, session, _, cal, _ = paper1
+    again = ekf.EKF().calibrate(session)
+    assert again.solver.method == ekf.EKF.name == "ekf"
+    np.testing.assert_array_equal(again.K, cal.K)
+    np.testing.assert_array_equal(again.std.K_g, cal.std.K_g)
 
 
 # --------------------------------------------------------------------------- history
@@ -175,22 +187,22 @@ def test_calibration_fields_like_the_nls(paper1):
 def test_history_columns_and_final_row_equals_the_calibration(paper1, tmp_path):
     _, _, _, cal, history = paper1
     df = history.to_frame()
-    assert list(df.columns) == ekf.HISTORY_COLUMNS
+    assert list(df.columns) == HISTORY_COLUMNS
     for name in ("t_s", "K11", "K23", "K33", "bias_x_deg_s", "bias_z_deg_s", "m_i_y", "K11_std",
                  "bias_y_deg_s_std", "m_i_z_std"):
         assert name in df.columns
-    assert 100 < len(df) <= ekf.HISTORY_ROWS
+    assert 100 < len(df) <= HISTORY_ROWS
     assert np.all(np.diff(df["t_s"].to_numpy()) > 0)
     last = df.iloc[-1]
     K = np.array([[last[f"K{i}{j}"] for j in (1, 2, 3)] for i in (1, 2, 3)])
     K_std = np.array([[last[f"K{i}{j}_std"] for j in (1, 2, 3)] for i in (1, 2, 3)])
     np.testing.assert_array_equal(K, cal.K)
-    np.testing.assert_allclose(K_std, cal.std["K"], rtol=1e-6)
-    np.testing.assert_allclose([last[n] for n in ekf.BIAS_NAMES], cal.bias_deg_s, rtol=1e-12)
+    np.testing.assert_allclose(K_std, cal.std.K, rtol=1e-6)
+    np.testing.assert_allclose([last[n] for n in BIAS_NAMES], cal.bias_deg_s, rtol=1e-12)
     # analytic QR differential (history) against central differences (calibration)
-    np.testing.assert_allclose([last[n + "_std"] for n in ekf.BIAS_NAMES], cal.std["bias_deg_s"], rtol=1e-4)
-    np.testing.assert_allclose([last[n] for n in ekf.FIELD_NAMES], cal.field_i, rtol=1e-12)
-    np.testing.assert_allclose([last[n + "_std"] for n in ekf.FIELD_NAMES], cal.std["field_i"], rtol=1e-6)
+    np.testing.assert_allclose([last[n + "_std"] for n in BIAS_NAMES], cal.std.bias_deg_s, rtol=1e-4)
+    np.testing.assert_allclose([last[n] for n in FIELD_NAMES], cal.field_i, rtol=1e-12)
+    np.testing.assert_allclose([last[n + "_std"] for n in FIELD_NAMES], cal.std.field_i, rtol=1e-6)
     # the estimates converge: the last std is far below the first
     assert df["K11_std"].iloc[-1] < 0.1 * df["K11_std"].iloc[0]
     path = tmp_path / "history.parquet"
@@ -198,7 +210,7 @@ def test_history_columns_and_final_row_equals_the_calibration(paper1, tmp_path):
     import pandas as pd
 
     back = pd.read_parquet(path)
-    assert list(back.columns) == ekf.HISTORY_COLUMNS and len(back) == len(df)
+    assert list(back.columns) == HISTORY_COLUMNS and len(back) == len(df)
 
 
 def test_plot_history_writes_a_figure(paper1, tmp_path):
@@ -223,7 +235,7 @@ def test_streaming_one_sample_at_a_time_equals_the_batch(paper1):
     prep = prepare(session, Options())
     s = prep.session
     ref = ekf.refine_magnetometer(s.mag, prep.fit.R, prep.fit.h, prep.sigma_mag)
-    init = ekf.initial_estimate(s, ref)
+    init = initial_estimate(s, ref)
     f = ekf.StreamingCalibrator(ref.R, ref.h, init.K0, init.eps0, None, prep.gyro_density, prep.sigma_mag,
                                 P0=init.P0, cov_Rh=ref.covariance, latency_s=0.05)
     rng = np.random.default_rng(7)
@@ -251,7 +263,7 @@ def test_streaming_one_sample_at_a_time_equals_the_batch(paper1):
     np.testing.assert_allclose(est["C_b_m"], cal.C_b_m, atol=1e-12)
     for key in ("K_g", "bias_deg_s", "misalignment_deg", "field_i"):
         assert np.all(est["std"][key][np.asarray(est["std"][key]) != 0] > 0)
-    np.testing.assert_allclose(est["std"]["K_g"], cal.std["K_g"], rtol=1e-3)
+    np.testing.assert_allclose(est["std"]["K_g"], cal.std.K_g, rtol=1e-3)
     assert seen is not None and seen["mag_updates"] >= 200
     assert np.all(seen["std"]["bias_deg_s"] > est["std"]["bias_deg_s"])
 
