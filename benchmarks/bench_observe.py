@@ -11,11 +11,11 @@
    Timed as the user runs it, and again with `OPENBLAS_NUM_THREADS=1`.
 4. **observe() s**: the call itself in this process, median of `--repeat`, and its part
    spent in the accuracy prediction (`report.prediction["seconds"]`).
-5. With `--stride-study`: `calibrate.predicted_std` at node strides 1, 2, 5, 10, 20: its time
-   with warm kernels, the first call's time (on a cold cache it includes compiling that
-   stride's kernels), and the largest relative change of any predicted gyro or magnetometer
-   std against stride 1. `magyro observe` predicts on nodes at 20 per second (stride 5 at
-   100 Hz); see docs/observability.md.
+5. With `--stride-study`: `magyro.nls.information.predicted_std` with `NLS(stride=...)` at
+   node strides 1, 2, 5, 10, 20: its time with warm kernels, the first call's time (on a
+   cold cache it includes compiling that stride's kernels), and the largest relative change
+   of any predicted gyro or magnetometer std against stride 1. `magyro observe` predicts on
+   nodes at 20 per second (stride 5 at 100 Hz); see docs/observability.md.
 
 Absolute times depend on the machine and its load: compare on a quiet machine.
 """
@@ -34,8 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
-from magyro.studies import simulate as sim
-from magyro.io.sessions import write_session
+from magyro.io import write_session
+from magyro.studies.scenario import load_problem
+from magyro.studies.simulate import simulate
 
 PROBLEM = "paper-table1"
 SEED = 0
@@ -64,7 +65,7 @@ def observe_process_s(session: Path, report: Path, repeat: int, env: dict | None
 
 
 def observe_call_s(session_obj, repeat: int) -> tuple[list[float], list[float]]:
-    from magyro.observability.report import observe
+    from magyro.observability import observe
 
     total, prediction = [], []
     for _ in range(repeat):
@@ -75,23 +76,27 @@ def observe_call_s(session_obj, repeat: int) -> tuple[list[float], list[float]]:
     return total, prediction
 
 
-def flat_std(std: dict) -> np.ndarray:
-    return np.concatenate([np.ravel(np.asarray(std[k], dtype=float)) for k in STD_KEYS])
+def flat_std(std) -> np.ndarray:
+    return np.concatenate([np.ravel(np.asarray(getattr(std, k), dtype=float)) for k in STD_KEYS])
 
 
 def stride_study(session_obj, repeat: int) -> list[dict]:
-    from magyro.nls.solve import Options, predicted_std, prepare
+    from magyro.front.prepare import prepare
+    from magyro.nls.information import predicted_std
+    from magyro.nls.method import NLS
+    from magyro.options import Options
 
-    prep = prepare(session_obj, Options())
+    options = Options()
+    prep = prepare(session_obj, options)
     rows, reference = [], None
     for stride in STRIDES:
         start = time.perf_counter()
-        std = flat_std(predicted_std(prep, Options(stride=stride)))  # compiles the kernels if not cached
+        std = flat_std(predicted_std(prep, options, NLS(stride=stride)))  # compiles the kernels if not cached
         first = time.perf_counter() - start
         times = []
         for _ in range(repeat):
             start = time.perf_counter()
-            predicted_std(prep, Options(stride=stride))
+            predicted_std(prep, options, NLS(stride=stride))
             times.append(time.perf_counter() - start)
         if reference is None:
             reference = std
@@ -111,7 +116,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
 
-    session_obj, _ = sim.simulate(sim.load_problem(PROBLEM), SEED)
+    session_obj, _ = simulate(load_problem(PROBLEM), SEED)
     results: dict = {"problem": PROBLEM, "samples": len(session_obj.t_gyro_s), "repeat": args.repeat}
     with tempfile.TemporaryDirectory() as tmp:
         session = Path(tmp) / "session.parquet"
@@ -127,7 +132,7 @@ def main() -> None:
         results["process_one_blas_thread_s"] = observe_process_s(
             session, report, args.repeat, {**os.environ, "OPENBLAS_NUM_THREADS": "1"})
         results["prediction_stride"] = json.loads(report.read_text())["prediction"]["stride"]
-    results["import_s"] = run_process([sys.executable, "-c", "import magyro.cli, magyro.observe"])
+    results["import_s"] = run_process([sys.executable, "-c", "import magyro.cli, magyro.observability.excitation"])
     results["call_s"], results["prediction_s"] = observe_call_s(session_obj, args.repeat)
 
     med = {k: statistics.median(results[k]) for k in ("process_s", "process_one_blas_thread_s", "call_s", "prediction_s")}
@@ -139,7 +144,7 @@ def main() -> None:
         print(f"| whole process, first run (empty kernel cache: compiles) | {results['cold_process_s']:.2f} |")
     print(f"| whole process (`magyro observe SESSION -o report.json -q`) | {med['process_s']:.2f} |")
     print(f"| whole process, OPENBLAS_NUM_THREADS=1 | {med['process_one_blas_thread_s']:.2f} |")
-    print(f"| python -c 'import magyro.cli, magyro.observe' | {results['import_s']:.2f} |")
+    print(f"| python -c 'import magyro.cli, magyro.observability.excitation' | {results['import_s']:.2f} |")
     print(f"| observe() call | {med['call_s']:.2f} |")
     print(f"| of which the accuracy prediction (stride {results['prediction_stride']}) | {med['prediction_s']:.2f} |")
     verdict = "PASS" if med["process_s"] < TARGET_S else "FAIL"

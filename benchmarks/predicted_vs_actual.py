@@ -2,13 +2,13 @@
 
     python benchmarks/predicted_vs_actual.py [--problem paper-table1] [--runs 30] [--jobs 1] [--out result.json]
 
-1. Simulates the problem with noise seed 0 and runs `magyro.observability.report.observe` on it:
+1. Simulates the problem with noise seed 0 and runs `magyro.observability.observe` on it:
    its `predicted_std` is the prediction, made before any solve (the node stride
    observe uses for it is printed; the stride-1 prediction is shown beside it).
 2. Simulates the same problem with noise seeds 1..N and calibrates each with
-   `magyro.nls.solve.calibrate` (what `magyro solve` runs). The sample standard
+   `magyro.calibrate` (what `magyro solve` runs). The sample standard
    deviation of each gyro parameter across the N estimates is the actual spread.
-   The misalignment is d with C_b_m(true) = C_b_m(est) Exp(d), in degrees (SPEC).
+   The misalignment is d with C_b_m(true) = C_b_m(est) Exp(d), in degrees (docs/spec.md section 4).
 3. Prints one row per gyro parameter: predicted, actual, ratio predicted/actual,
    and whether the ratio is within +/-25 %. With N runs the sample std itself
    scatters by about 1/sqrt(2(N-1)) (13 % at N = 30), so a ratio a little outside
@@ -41,17 +41,19 @@ def parameter_names() -> list[str]:
     return names
 
 
-def gyro_vector_from_std(std: dict) -> np.ndarray:
-    K = np.asarray(std["K_g"], dtype=float)
-    return np.concatenate([[K[i, j] for i, j in UPPER], np.asarray(std["bias_deg_s"], float),
-                           np.asarray(std["misalignment_deg"], float)])
+def gyro_vector_from_std(std) -> np.ndarray:
+    """The gyro part of a `magyro.result.parts.Std` (a calibration's or observe's), in `parameter_names()` order."""
+    K = np.asarray(std.K_g, dtype=float)
+    return np.concatenate([[K[i, j] for i, j in UPPER], np.asarray(std.bias_deg_s, float),
+                           np.asarray(std.misalignment_deg, float)])
 
 
 def one_run(problem_name: str, seed: int) -> dict:
     """Solve one seeded session; the gyro estimates (misalignment as d against the truth) and reported std."""
-    from magyro.nls.solve import calibrate
-    from magyro.result.calibration import misalignment_vector
-    from magyro.studies.simulate import load_problem, simulate
+    from magyro import calibrate
+    from magyro.result.reported import misalignment_vector
+    from magyro.studies.scenario import load_problem
+    from magyro.studies.simulate import simulate
 
     session, truth = simulate(load_problem(problem_name), seed)
     start = time.perf_counter()
@@ -64,15 +66,19 @@ def one_run(problem_name: str, seed: int) -> dict:
 
 def prediction(problem_name: str) -> tuple[np.ndarray, np.ndarray, dict]:
     """(observe's predicted std, the stride-1 predicted std, observe's prediction info), seed 0."""
-    from magyro.nls.solve import Options, predicted_std, prepare
-    from magyro.observability.report import observe
-    from magyro.studies.simulate import load_problem, simulate
+    from magyro.front.prepare import prepare
+    from magyro.nls.information import predicted_std
+    from magyro.nls.method import NLS
+    from magyro.observability import observe
+    from magyro.options import Options
+    from magyro.studies.scenario import load_problem
+    from magyro.studies.simulate import simulate
 
     session, _ = simulate(load_problem(problem_name), 0)
     report = observe(session)
     if report.predicted_std is None:
         sys.exit(f"{problem_name}: observe gives no prediction ({report.reason})")
-    stride1 = predicted_std(prepare(session, Options()), Options(stride=1))
+    stride1 = predicted_std(prepare(session, Options()), Options(), NLS(stride=1))
     return gyro_vector_from_std(report.predicted_std), gyro_vector_from_std(stride1), report.prediction
 
 

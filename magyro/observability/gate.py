@@ -28,6 +28,7 @@ from magyro.observability.matrix import information_integral, trapezoid_weights
 
 FLOOR_FACTOR = 10.0
 NUMERICAL_RTOL = 1e-12
+WELL_CONDITIONED = 100.0   # "well conditioned": full rank and condition below this (`magyro observe`)
 AXES = "xyz"
 
 
@@ -90,7 +91,7 @@ def noise_matrix(t_gyro_s, gyro_rad_s, t_mag_s, field_m, gyro_sample_std_rad_s: 
 def cumulative_noise_matrix(t_gyro_s, gyro_rad_s, t_mag_s, field_m, gyro_sample_std_rad_s: float,
                             mag_std_unit_field: float, t_checkpoints_s) -> np.ndarray:
     """`noise_matrix` of the session up to each checkpoint time: (C, 12, 12), the twin of
-    `excitation.cumulative_information` (same samples, same trapezoid, same checkpoint look-up).
+    `matrix.cumulative_information` (same samples, same trapezoid, same checkpoint look-up).
 
     At a checkpoint on the last gyro sample it equals `noise_matrix` of the whole session.
     """
