@@ -10,10 +10,9 @@ import pytest
 
 from magyro import so3
 from magyro.errors import InputError
+from magyro.studies.scenario import PROBLEMS_DIR, load_problem
 from magyro.studies.simulate import (
-    PROBLEMS_DIR,
     field_i,
-    load_problem,
     simulate,
     truth_attitude,
     truth_body_attitude,
@@ -121,11 +120,13 @@ def test_noise_statistics(name):
     noisy, truth = simulate(p, seed=11)
     dg = noisy.gyro_rad_s - clean.gyro_rad_s
     expected_g = np.deg2rad(p.gyro_noise_density_deg_s_sqrt_hz) * np.sqrt(p.gyro_rate_hz)
-    assert truth["noise"]["gyro_sample_std_rad_s"] == pytest.approx(expected_g)
     np.testing.assert_allclose(dg.std(axis=0), expected_g, rtol=0.05)
     np.testing.assert_allclose(dg.mean(axis=0), 0.0, atol=5 * expected_g / np.sqrt(len(dg)))
     dm = noisy.mag - clean.mag
     np.testing.assert_allclose(dm.std(axis=0), p.mag_noise_std, rtol=0.05)
+    # the truth file states the noise the samples actually carry
+    np.testing.assert_allclose(dg.std(axis=0), truth["noise"]["gyro_sample_std_rad_s"], rtol=0.05)
+    np.testing.assert_allclose(dm.std(axis=0), truth["noise"]["mag_std"], rtol=0.05)
 
 
 def test_motion_is_fixed_by_the_problem_and_noise_by_the_seed():
@@ -153,8 +154,6 @@ def test_paper_problem_is_table_one():
     assert p.duration_s == 100.0 and p.gyro_rate_hz == 100.0 and p.mag_rate_hz == 100.0
     assert p.motion.rest_start_s == 0.0 and p.motion.rest_end_s == 0.0
     np.testing.assert_allclose(np.linalg.norm(truth["field_i"]), 1.0)
-    C = np.array(truth["misalignment"]["C_b_m"])
-    np.testing.assert_allclose(np.array(truth["gyro"]["K"]), C @ np.array(truth["gyro"]["K_g"]))
     # realistic hand motion about all three axes
     w = np.rad2deg(truth_body_rate(p, np.arange(0.0, 100.0, 0.01)))
     assert np.linalg.norm(w, axis=1).max() < 200.0

@@ -5,16 +5,29 @@ parameters and the TRUE attitude, with the true noise levels, trajectory
 marginalised out and propagated to the reported parameters exactly like the
 std of a solve. No unbiased estimator can have a smaller std; the joint NLS
 should come close (`magyro montecarlo` compares them).
+
+The session is trimmed by the front end's `moving_session`, the grid and the
+problem are the NLS method's (its stride and kernels), and the information is
+`nls.information.information_covariance`: the functions a solve runs, only the
+linearisation point is the truth. The noise is Gaussian, so the bound is that of
+the plain least squares whatever the method's `loss`.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from magyro.nls.solve import Options, default_stride, information_covariance, moving_session
-from magyro.result.calibration import std_from_covariance
-from magyro.nls.problem import JointProblem, Linearisation, build_grid
+from magyro import so3
+from magyro.front.prepare import moving_session
+from magyro.nls.grid import build_grid
+from magyro.nls.information import information_covariance
+from magyro.nls.method import NLS
+from magyro.nls.problem import JointProblem, Linearisation
+from magyro.nls.solve import default_stride
+from magyro.options import Options
+from magyro.result.reported import REPORTED, std_from_covariance
 from magyro.session import Session
-from magyro.studies.simulate import Problem, field_i, truth_attitude
+from magyro.studies.scenario import Problem
+from magyro.studies.simulate import field_i, truth_attitude
 
 
 def truth_linearisation(problem: Problem, t_node_s: np.ndarray) -> Linearisation:
@@ -27,23 +40,40 @@ def truth_linearisation(problem: Problem, t_node_s: np.ndarray) -> Linearisation
                          float(np.mean(np.diag(S0))), problem.mag_time_offset_s)
 
 
-def moving_part(problem: Problem, session: Session, options: Options) -> Session:
-    """The session as the solver sees it (rests at both ends trimmed, as calibrate does)."""
-    return moving_session(session, options)[0]
-
-
-def cramer_rao_std(problem: Problem, session: Session, options: Options | None = None) -> dict:
-    """CRLB one-sigma of every reported parameter (laid out like Calibration.std)."""
-    return std_from_covariance(cramer_rao_covariance(problem, session, options))
-
-
-def cramer_rao_covariance(problem: Problem, session: Session, options: Options | None = None) -> np.ndarray:
-    """CRLB covariance of the reported vector (result.REPORTED layout)."""
-    options = options or Options()
-    s = moving_part(problem, session, options)
-    grid = build_grid(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, options.stride or default_stride(s))
+def cramer_rao_covariance(problem: Problem, session: Session, options: Options | None = None,
+                          nls: NLS | None = None) -> np.ndarray:
+    """CRLB covariance of the reported vector (result.REPORTED layout), for the NLS method `nls` (default NLS())."""
+    options, nls = options or Options(), nls or NLS()
+    s = moving_session(session, options)[0]
+    grid = build_grid(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, nls.stride or default_stride(s))
     lin = truth_linearisation(problem, grid.t_node_s)
-    jp = JointProblem(grid, compiled=options.compiled, estimate_time_offset=options.estimate_time_offset)
+    jp = JointProblem(grid, compiled=nls.compiled, estimate_time_offset=options.estimate_time_offset)
     p = jp.parameters(lin, s.mag, problem.mag_noise_std, problem.gyro_noise_density_rad_s_sqrt_hz,
                       s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, problem.mag_time_offset_s)
     return information_covariance(jp, lin, p)
+
+
+def cramer_rao_std(problem: Problem, session: Session, options: Options | None = None, nls: NLS | None = None) -> dict:
+    """CRLB one-sigma of every reported parameter (laid out like Calibration.std)."""
+    return std_from_covariance(cramer_rao_covariance(problem, session, options, nls))
+
+
+def euler_jacobian_deg_per_rad(C: np.ndarray, step: float = 1e-6) -> np.ndarray:
+    """d dcm2eul(C Exp(x)) / dx at x = 0, deg per rad (3x3, central differences)."""
+    J = np.empty((3, 3))
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = step
+        J[:, k] = (so3.dcm_to_euler(C @ so3.exp_so3(e)) - so3.dcm_to_euler(C @ so3.exp_so3(-e))) / (2 * step)
+    return J
+
+
+def euler_std_deg(C_b_m: np.ndarray, covariance: np.ndarray) -> np.ndarray:
+    """One-sigma of [roll, pitch, yaw] of C_b^m (deg) from a reported-vector covariance: J cov(d) J^T.
+
+    d is the misalignment vector (C_true = C_est Exp(d)), in deg in the reported vector.
+    """
+    sl = REPORTED["misalignment_deg"]
+    cov_d_rad = np.deg2rad(np.deg2rad(covariance[sl, sl]))
+    J = euler_jacobian_deg_per_rad(C_b_m)
+    return np.sqrt(np.maximum(np.diag(J @ cov_d_rad @ J.T), 0.0))

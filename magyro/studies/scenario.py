@@ -1,0 +1,309 @@
+"""A simulated scenario: the `Problem` a TOML file in ``problems/`` describes, read and checked.
+
+A *problem* (documented at the top of ``problems/paper-table1.toml``) fixes the
+sensors, their errors and the motion; `load_problem` reads one by path or by
+the name of a shipped file and raises InputError with a plain message when it
+is unusable. Turning a problem into samples is `magyro.studies.simulate`.
+
+The motion (`Motion`) is drawn from its own ``motion.seed``, so every noise
+seed of a problem sees the same motion; `Problem` also derives what the sensor
+model needs from the file's numbers (C_b^m, K = C_b^m K_g, R, the field m^w).
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from magyro import so3
+from magyro.errors import InputError
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
+
+# the problems shipped with magyro: installed as package data (magyro/problems), or the
+# top-level problems/ of a source checkout
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
+PROBLEMS_DIR = next(
+    (d for d in (PACKAGE_DIR / "problems", PACKAGE_DIR.parent / "problems") if d.is_dir()),
+    PACKAGE_DIR.parent / "problems",
+)
+MOTION_KINDS = ("euler", "sequential", "static")
+AXES = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
+
+
+# --------------------------------------------------------------------------- problem
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """The excitation: which body axes turn, how far, how fast, when."""
+
+    kind: str                          # "euler" | "sequential" | "static"
+    seed: int                          # motion seed (frequencies, phases, weights)
+    axes: tuple[str, ...]              # body axes of the factors, in product order
+    amplitude_deg: np.ndarray          # (len(axes),) bound on |angle| of each factor
+    band_hz: tuple[float, float]       # sinusoid frequencies drawn uniformly in here
+    components: int                    # sinusoids per factor
+    rest_start_s: float                # still at the start
+    rest_end_s: float                  # still at the end
+    ramp_s: float                      # C^2 ramp of the window (per slot for sequential)
+    initial_euler_deg: np.ndarray      # C0 = C_b^w at rest, [roll, pitch, yaw]
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """A complete simulated scenario; see problems/paper-table1.toml for the keys."""
+
+    name: str
+    description: str
+    duration_s: float
+    gyro_rate_hz: float
+    gyro_noise_density_deg_s_sqrt_hz: float
+    K_g: np.ndarray                    # (3, 3) upper triangular, positive diagonal
+    gyro_bias_deg_s: np.ndarray        # (3,) eps_b
+    misalignment_euler_deg: np.ndarray  # (3,) [roll, pitch, yaw] of C_b^m
+    mag_rate_hz: float
+    mag_time_offset_s: float           # the magnetometer lags the gyro by this much
+    mag_noise_std: float               # per axis, in mag_unit
+    mag_unit: str
+    field_strength: float              # |m^w| in mag_unit
+    dip_deg: float
+    soft_iron: np.ndarray              # (3, 3) T, upper triangular, positive diagonal
+    hard_iron: np.ndarray              # (3,) h, in mag_unit
+    motion: Motion
+    source_path: str = ""
+
+    @property
+    def gyro_bias_rad_s(self) -> np.ndarray:
+        return np.deg2rad(self.gyro_bias_deg_s)
+
+    @property
+    def gyro_noise_density_rad_s_sqrt_hz(self) -> float:
+        return math.radians(self.gyro_noise_density_deg_s_sqrt_hz)
+
+    @property
+    def gyro_sample_std_rad_s(self) -> float:
+        return self.gyro_noise_density_rad_s_sqrt_hz * math.sqrt(self.gyro_rate_hz)
+
+    @property
+    def C_b_m(self) -> np.ndarray:
+        return so3.euler_to_dcm(self.misalignment_euler_deg)
+
+    @property
+    def K(self) -> np.ndarray:
+        return self.C_b_m @ self.K_g
+
+    @property
+    def eps_m_rad_s(self) -> np.ndarray:
+        return self.C_b_m @ self.gyro_bias_rad_s
+
+    @property
+    def R(self) -> np.ndarray:
+        return np.linalg.inv(self.field_strength * self.soft_iron)
+
+    @property
+    def field_w(self) -> np.ndarray:
+        """m^w in ENU, mag_unit: north, pointing down for positive dip."""
+        d = math.radians(self.dip_deg)
+        return self.field_strength * np.array([0.0, math.cos(d), -math.sin(d)])
+
+    @property
+    def C0(self) -> np.ndarray:
+        return so3.euler_to_dcm(self.motion.initial_euler_deg)
+
+
+_SCHEMA: dict[str, dict[str, bool]] = {  # section -> key -> required
+    "problem": {"name": False, "description": False, "duration_s": True},
+    "gyro": {"rate_hz": True, "noise_density_deg_s_sqrt_hz": True, "K_g": True, "bias_deg_s": True},
+    "misalignment": {"euler_deg": True},
+    "magnetometer": {
+        "rate_hz": True, "time_offset_s": False, "noise": True, "unit": False,
+        "field_strength": False, "dip_deg": False, "soft_iron": False, "hard_iron": False,
+    },
+    "motion": {
+        "kind": True, "seed": False, "axes": False, "amplitude_deg": False, "band_hz": False,
+        "components": False, "rest_start_s": False, "rest_end_s": False, "ramp_s": False,
+        "initial_euler_deg": False,
+    },
+}
+
+
+def resolve_problem_path(path_or_name: str | os.PathLike) -> Path:
+    """A path as given, or a bare name like "paper-table1" looked up in problems/."""
+    path = Path(path_or_name)
+    if path.is_file():
+        return path
+    text = str(path_or_name)
+    if os.sep not in text and "/" not in text:
+        stem = text[:-5] if text.endswith(".toml") else text
+        candidate = PROBLEMS_DIR / f"{stem}.toml"
+        if candidate.is_file():
+            return candidate
+    known = ", ".join(sorted(p.stem for p in PROBLEMS_DIR.glob("*.toml"))) or "none"
+    raise InputError(f"problem '{text}' not found (no such file; shipped problems: {known})")
+
+
+def load_problem(path_or_name: str | os.PathLike) -> Problem:
+    """Read and check a problem TOML; raise InputError with a plain message if unusable."""
+    path = resolve_problem_path(path_or_name)
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML ({exc})") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read ({exc})") from None
+    return parse_problem(raw, source=str(path), default_name=path.stem)
+
+
+def parse_problem(raw: dict, source: str = "<dict>", default_name: str = "problem") -> Problem:
+    """Build a Problem from the parsed TOML tables, checking keys, shapes and ranges."""
+    _check_keys(raw, source)
+    p, g, mis, mag, mo = (raw.get(s, {}) for s in ("problem", "gyro", "misalignment", "magnetometer", "motion"))
+    where = lambda sec: f"{source} [{sec}]"  # noqa: E731
+    problem = Problem(
+        name=_string(p.get("name", default_name), where("problem"), "name"),
+        description=_string(p.get("description", ""), where("problem"), "description"),
+        duration_s=_positive(p["duration_s"], where("problem"), "duration_s"),
+        gyro_rate_hz=_positive(g["rate_hz"], where("gyro"), "rate_hz"),
+        gyro_noise_density_deg_s_sqrt_hz=_non_negative(
+            g["noise_density_deg_s_sqrt_hz"], where("gyro"), "noise_density_deg_s_sqrt_hz"),
+        K_g=_upper_triangular(g["K_g"], where("gyro"), "K_g"),
+        gyro_bias_deg_s=_vector3(g["bias_deg_s"], where("gyro"), "bias_deg_s"),
+        misalignment_euler_deg=_vector3(mis["euler_deg"], where("misalignment"), "euler_deg"),
+        mag_rate_hz=_positive(mag["rate_hz"], where("magnetometer"), "rate_hz"),
+        mag_time_offset_s=_number(mag.get("time_offset_s", 0.0), where("magnetometer"), "time_offset_s"),
+        mag_noise_std=_non_negative(mag["noise"], where("magnetometer"), "noise"),
+        mag_unit=_string(mag.get("unit", "unitless"), where("magnetometer"), "unit"),
+        field_strength=_positive(mag.get("field_strength", 1.0), where("magnetometer"), "field_strength"),
+        dip_deg=_number(mag.get("dip_deg", 60.0), where("magnetometer"), "dip_deg"),
+        soft_iron=_upper_triangular(mag.get("soft_iron", np.eye(3).tolist()), where("magnetometer"), "soft_iron"),
+        hard_iron=_vector3(mag.get("hard_iron", [0.0, 0.0, 0.0]), where("magnetometer"), "hard_iron"),
+        motion=_parse_motion(mo, where("motion")),
+        source_path=source,
+    )
+    _check_consistency(problem, source)
+    return problem
+
+
+def _check_keys(raw: dict, source: str) -> None:
+    unknown = sorted(set(raw) - set(_SCHEMA))
+    if unknown:
+        raise InputError(f"{source}: unknown section(s) {unknown}; expected {sorted(_SCHEMA)}")
+    for section, keys in _SCHEMA.items():
+        table = raw.get(section, {})
+        if not isinstance(table, dict):
+            raise InputError(f"{source}: [{section}] must be a table")
+        extra = sorted(set(table) - set(keys))
+        if extra:
+            raise InputError(f"{source} [{section}]: unknown key(s) {extra}; allowed: {sorted(keys)}")
+        missing = sorted(k for k, required in keys.items() if required and k not in table)
+        if missing:
+            raise InputError(f"{source} [{section}]: missing required key(s) {missing}")
+
+
+def _parse_motion(mo: dict, where: str) -> Motion:
+    kind = _string(mo["kind"], where, "kind")
+    if kind not in MOTION_KINDS:
+        raise InputError(f"{where}: kind must be one of {list(MOTION_KINDS)}, got '{kind}'")
+    default_axes = [] if kind == "static" else ["z", "y", "x"]
+    axes = mo.get("axes", default_axes)
+    if not isinstance(axes, list) or any(a not in AXES for a in axes):
+        raise InputError(f"{where}: axes must be a list of \"x\", \"y\", \"z\", got {axes!r}")
+    if kind != "static" and not axes:
+        raise InputError(f"{where}: kind '{kind}' needs at least one axis")
+    amplitude = _vector(mo.get("amplitude_deg", [0.0] * len(axes)), where, "amplitude_deg", len(axes))
+    if np.any(amplitude < 0):
+        raise InputError(f"{where}: amplitude_deg must be non-negative")
+    band = _vector(mo.get("band_hz", [0.05, 0.5]), where, "band_hz", 2)
+    if not 0.0 < band[0] <= band[1]:
+        raise InputError(f"{where}: band_hz must be [low, high] with 0 < low <= high, got {band.tolist()}")
+    components = mo.get("components", 4)
+    if not isinstance(components, int) or isinstance(components, bool) or components < 1:
+        raise InputError(f"{where}: components must be a positive integer, got {components!r}")
+    seed = mo.get("seed", 0)
+    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+        raise InputError(f"{where}: seed must be a non-negative integer, got {seed!r}")
+    return Motion(
+        kind=kind,
+        seed=seed,
+        axes=tuple(axes),
+        amplitude_deg=amplitude,
+        band_hz=(float(band[0]), float(band[1])),
+        components=components,
+        rest_start_s=_non_negative(mo.get("rest_start_s", 0.0), where, "rest_start_s"),
+        rest_end_s=_non_negative(mo.get("rest_end_s", 0.0), where, "rest_end_s"),
+        ramp_s=_positive(mo.get("ramp_s", 2.0), where, "ramp_s"),
+        initial_euler_deg=_vector3(mo.get("initial_euler_deg", [0.0, 0.0, 0.0]), where, "initial_euler_deg"),
+    )
+
+
+def _check_consistency(problem: Problem, source: str) -> None:
+    m = problem.motion
+    if abs(problem.dip_deg) > 90.0:
+        raise InputError(f"{source} [magnetometer]: dip_deg must be within [-90, 90], got {problem.dip_deg}")
+    if abs(problem.mag_time_offset_s) >= problem.duration_s:
+        raise InputError(f"{source} [magnetometer]: |time_offset_s| must be smaller than the duration")
+    if m.kind == "static":
+        return
+    nyquist = 0.5 * min(problem.gyro_rate_hz, problem.mag_rate_hz)
+    if m.band_hz[1] >= nyquist:
+        raise InputError(f"{source} [motion]: band_hz up to {m.band_hz[1]} Hz is not below the Nyquist "
+                         f"frequency {nyquist} Hz of the slower sensor")
+    active = problem.duration_s - m.rest_start_s - m.rest_end_s
+    slots = len(m.axes) if m.kind == "sequential" else 1
+    if active < 2.0 * m.ramp_s * slots:
+        raise InputError(f"{source} [motion]: {active:g} s of motion between the rests cannot hold "
+                         f"{slots} slot(s) with {m.ramp_s:g} s ramps at both ends")
+
+
+def _number(value, where: str, key: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise InputError(f"{where}: {key} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _positive(value, where: str, key: str) -> float:
+    x = _number(value, where, key)
+    if x <= 0:
+        raise InputError(f"{where}: {key} must be positive, got {value!r}")
+    return x
+
+
+def _non_negative(value, where: str, key: str) -> float:
+    x = _number(value, where, key)
+    if x < 0:
+        raise InputError(f"{where}: {key} must be non-negative, got {value!r}")
+    return x
+
+
+def _string(value, where: str, key: str) -> str:
+    if not isinstance(value, str):
+        raise InputError(f"{where}: {key} must be a string, got {value!r}")
+    return value
+
+
+def _vector(value, where: str, key: str, n: int) -> np.ndarray:
+    if not isinstance(value, list) or len(value) != n:
+        raise InputError(f"{where}: {key} must be a list of {n} numbers, got {value!r}")
+    return np.array([_number(v, where, key) for v in value])
+
+
+def _vector3(value, where: str, key: str) -> np.ndarray:
+    return _vector(value, where, key, 3)
+
+
+def _upper_triangular(value, where: str, key: str) -> np.ndarray:
+    if not isinstance(value, list) or len(value) != 3 or any(not isinstance(r, list) for r in value):
+        raise InputError(f"{where}: {key} must be a 3x3 list of lists, got {value!r}")
+    M = np.array([_vector3(row, where, key) for row in value])
+    if np.any(np.tril(M, -1) != 0.0):
+        raise InputError(f"{where}: {key} must be upper triangular (zeros below the diagonal), got {M.tolist()}")
+    if np.any(np.diag(M) <= 0.0):
+        raise InputError(f"{where}: {key} must have a positive diagonal, got {np.diag(M).tolist()}")
+    return M
