@@ -21,8 +21,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from magyro.studies import simulate as sim
-from magyro.io.sessions import write_session
+from magyro.studies.scenario import load_problem
+from magyro.studies.simulate import simulate
+from magyro.io import write_session
 
 PROBLEM = "paper-table1"
 SEED = 0
@@ -40,7 +41,7 @@ def problem_for_samples(samples: int):
     band is sped up by the same factor, so the session still holds the paper's motion
     cycles (at the paper's 0.02-0.2 Hz, 10 s does not turn the board enough for the
     magnetometer ellipsoid fit)."""
-    problem = sim.load_problem(PROBLEM)
+    problem = load_problem(PROBLEM)
     duration_s = samples / problem.gyro_rate_hz
     speedup = max(1.0, problem.duration_s / duration_s)
     motion = dataclasses.replace(problem.motion, band_hz=tuple(f * speedup for f in problem.motion.band_hz))
@@ -49,7 +50,7 @@ def problem_for_samples(samples: int):
 
 def write_benchmark_session(samples: int, folder: Path) -> tuple[Path, int]:
     """A session file of about `samples` gyro and magnetometer samples, and its exact count."""
-    session, _ = sim.simulate(problem_for_samples(samples), SEED)
+    session, _ = simulate(problem_for_samples(samples), SEED)
     path = folder / f"session_{samples}.parquet"
     write_session(session, path)
     return path, len(session.t_gyro_s)

@@ -59,9 +59,10 @@ import scipy.sparse
 from scipy.optimize import least_squares, minimize, minimize_scalar
 
 from magyro import so3
-from magyro.nls.solve import Options, moving_session
-from magyro.io.importers import import_broad_movement
-from magyro.result.calibration import qr_split
+from magyro.options import Options
+from magyro.front.prepare import moving_session
+from magyro.io import import_broad_movement
+from magyro.result.reported import qr_split
 from magyro.session import Session
 
 REPO = Path(__file__).resolve().parents[1]
@@ -571,15 +572,15 @@ def ideal_magnetometer_session(trial: Trial, mag: dict, seed: int = 0) -> Sessio
 
 def magyro_ideal(trial: Trial, ref: dict) -> dict:
     """magyro's gyro estimates on the ideal-magnetometer session, with their std."""
-    from magyro.nls.solve import calibrate
+    from magyro import calibrate
 
     cal = calibrate(ideal_magnetometer_session(trial, ref["mag"]), Options())
     std = cal.std
     return {
-        "scale_ppm": (1e6 * (np.diag(cal.K_g) - 1)).tolist(), "scale_ppm_std": (1e6 * np.diag(std["K_g"])).tolist(),
+        "scale_ppm": (1e6 * (np.diag(cal.K_g) - 1)).tolist(), "scale_ppm_std": (1e6 * np.diag(std.K_g)).tolist(),
         "nonorth_deg": np.rad2deg(cal.K_g[UPPER_OFF]).tolist(),
-        "nonorth_deg_std": np.rad2deg(np.asarray(std["K_g"])[UPPER_OFF]).tolist(),
-        "bias_deg_s": cal.bias_deg_s.tolist(), "bias_deg_s_std": np.asarray(std["bias_deg_s"]).tolist(),
+        "nonorth_deg_std": np.rad2deg(np.asarray(std.K_g)[UPPER_OFF]).tolist(),
+        "bias_deg_s": cal.bias_deg_s.tolist(), "bias_deg_s_std": np.asarray(std.bias_deg_s).tolist(),
         "lag_ms": 1e3 * cal.time_offset_s,
     }
 

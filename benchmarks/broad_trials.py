@@ -23,9 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from magyro.nls.solve import Options, calibrate
+from magyro.options import Options
+
+from magyro import calibrate
 from magyro.errors import MagyroError
-from magyro.io.importers import import_broad_movement
+from magyro.io import import_broad_movement
 from magyro.studies.dead_reckoning import validate
 
 DEFAULT_TRIALS = "02,03,05,07,09,21,30,32,34,36"

@@ -1,7 +1,7 @@
 """`magyro` on the command line: a thin layer over the Python API.
 
 Every failure the user can fix ends with one plain message on stderr and the
-SPEC exit code (2 unusable input, 3 not observable, 1 solver failed).
+exit code of docs/spec.md section 3 (2 unusable input, 3 not observable, 1 solver failed).
 """
 from __future__ import annotations
 
@@ -14,7 +14,6 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 from pathlib import Path
 from typing import List, Optional
 
-import numpy as np
 import typer
 
 from magyro import __version__
@@ -57,7 +56,7 @@ def main_options(
 
 @app.command()
 def solve(
-    session: Path = typer.Argument(..., help="Session file (.parquet or .csv, SPEC section 2)."),
+    session: Path = typer.Argument(..., help="Session file (.parquet or .csv, docs/spec.md section 2)."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the calibration JSON here."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
@@ -78,35 +77,14 @@ def solve(
 
     --stride, --loss, --time-offset and --split-check apply to the nls method only.
     """
-    from magyro.nls.solve import Options, calibrate
-    from magyro.errors import InputError
-    from magyro.io.sessions import load_session, write_text_atomically
+    from magyro.api import solve_file
+    from magyro.options import Options
 
     def action():
-        s = load_session(session, gyro_unit=gyro_unit, mag_unit=mag_unit)
-        opts = Options(
-            gyro_noise_density_rad_s_sqrt_hz=None if gyro_noise_deg_s_sqrt_hz is None else float(np.deg2rad(gyro_noise_deg_s_sqrt_hz)),
-            mag_noise_std=mag_noise, stride=stride, force=force, loss=loss,
-            estimate_time_offset=time_offset, trim_rests=not keep_rests, split_check=split_check,
-        )
-        if method not in ("nls", "ekf"):
-            raise InputError(f"unknown method '{method}'; use nls or ekf")
-        if method == "ekf" and split_check:
-            raise InputError("--split-check needs --method nls (it compares two least-squares solves)")
-        if method == "nls" and (history is not None or history_plot is not None):
-            raise InputError("--history and --history-plot need --method ekf (the least squares has no estimate over time)")
-        if method == "ekf":
-            from magyro.ekf.filter import ekf_calibrate, plot_history
-
-            cal, hist = ekf_calibrate(s, opts)
-            if history is not None:
-                hist.write_parquet(history)
-            if history_plot is not None:
-                plot_history(hist, history_plot, title=f"{session.name}: EKF estimates, +/- 3 sigma")
-        else:
-            cal = calibrate(s, opts)
-        if output is not None:
-            write_text_atomically(output, cal.to_json() + "\n")
+        options = Options.in_user_units(gyro_noise_deg_s_sqrt_hz, mag_noise, force=force, estimate_time_offset=time_offset,
+                                        trim_rests=not keep_rests, split_check=split_check)
+        cal = solve_file(session, options, method, {"stride": stride, "loss": loss}, gyro_unit=gyro_unit,
+                         mag_unit=mag_unit, output=output, history=history, history_plot=history_plot)
         if not quiet:
             typer.echo(cal.table())
             if output is not None:
@@ -122,22 +100,13 @@ def simulate(
     seed: int = typer.Option(0, "--seed", help="Noise seed (the motion is fixed by the problem)."),
 ):
     """A simulated session and its true parameters from a problem file."""
-    from magyro.studies import simulate as sim
-    from magyro.io.sessions import write_session
+    from magyro.api import simulate_file
 
     def action():
-        prob = sim.load_problem(problem)
-        s, truth = sim.simulate(prob, seed)
-        write_session(s, output)
-        truth_path = truth_path_for(output)
-        sim.write_truth(truth, truth_path)
+        s, truth_path = simulate_file(problem, output, seed)
         typer.echo(f"session written to {output} ({len(s.t_gyro_s)} gyro, {len(s.t_mag_s)} magnetometer samples); truth in {truth_path}")
 
     run_guarded(action)
-
-
-def truth_path_for(session_path: Path) -> Path:
-    return session_path.with_name(session_path.stem + ".truth.json")
 
 
 @app.command()
@@ -157,14 +126,11 @@ def montecarlo(
     listed with their seed and message, and the table of the successful ones is
     still printed and written.
     """
-    from magyro.studies import montecarlo as mc
-    from magyro.studies.simulate import load_problem
+    from magyro.api import montecarlo_study
 
     def action():
-        prob = load_problem(problem)
-        with mc.progress_display(runs, enabled=not quiet) as progress:
-            result = mc.run_montecarlo(prob, runs, jobs=jobs, method=method, seed0=seed0, progress=progress)
-        mc.write_outputs(result, output, csv_path)
+        result = montecarlo_study(problem, runs, jobs=jobs, method=method, seed0=seed0, output=output,
+                                  csv_path=csv_path, progress=not quiet)
         if not quiet:
             typer.echo(result.table())
             for path in (output, csv_path):
@@ -184,25 +150,6 @@ import_app = typer.Typer(no_args_is_help=True, help="Convert recordings into ses
 app.add_typer(import_app, name="import")
 
 
-def _write_imported(s, output: Path) -> None:
-    """Parquet with zstd (metadata kept), or CSV by suffix."""
-    from magyro.io.importers import write_session_parquet
-    from magyro.io.sessions import PARQUET_SUFFIXES, write_session
-
-    if output.suffix.lower() in PARQUET_SUFFIXES:
-        write_session_parquet(s, output)
-    else:
-        write_session(s, output)
-
-
-def _cut(s, start: Optional[float], end: Optional[float]):
-    from magyro.io.importers import trim
-
-    if start is None and end is None:
-        return s
-    return trim(s, s.t_gyro_s[0] if start is None else start, s.t_gyro_s[-1] if end is None else end)
-
-
 @import_app.command("broad")
 def import_broad_command(
     trial: Path = typer.Argument(..., help="A BROAD trial file (.mat, or .hdf5/.h5 with h5py installed)."),
@@ -214,12 +161,11 @@ def import_broad_command(
     decimate_by: int = typer.Option(1, "--decimate", min=1, help="Keep every N-th sample (no filtering)."),
 ):
     """A BROAD benchmark trial: gyro, magnetometer (uT), accelerometer, optical truth as qw qx qy qz."""
-    from magyro.io.importers import BROAD_CITATION, decimate, import_broad, import_broad_movement
+    from magyro.io import BROAD_CITATION, convert_broad
 
     def action():
-        s = import_broad_movement(trial, rest_s) if movement else import_broad(trial)
-        s = decimate(_cut(s, start, end), decimate_by)
-        _write_imported(s, output)
+        s = convert_broad(trial, output, movement=movement, rest_s=rest_s, start_s=start, end_s=end,
+                          decimate_by=decimate_by)
         n_truth = 0 if s.t_quat_s is None else len(s.t_quat_s)
         typer.echo(f"session written to {output}: {len(s.t_gyro_s)} samples at {s.gyro_rate_hz:.3f} Hz, "
                    f"{s.t_gyro_s[0]:.3f} to {s.t_gyro_s[-1]:.3f} s, {n_truth} truth quaternions")
@@ -242,21 +188,13 @@ def import_csv_command(
     end: Optional[float] = typer.Option(None, "--end", help="Drop samples after this time (s)."),
 ):
     """A phone or logger CSV export, with column and unit mapping, as a session file."""
-    from magyro.errors import InputError
-    from magyro.io.importers import import_csv
+    from magyro.io import cut, import_csv, parse_column_map, write_imported
 
     def action():
-        mapping = {}
-        for item in column_map or []:
-            for pair in item.split(","):
-                name, sep, column = pair.partition("=")
-                if not sep or not name.strip() or not column.strip():
-                    raise InputError(f"--map {pair!r}: expected NAME=COLUMN, e.g. --map gx=gyroX")
-                mapping[name.strip()] = column.strip()
-        s = import_csv(source, mapping, gyro_unit=gyro_unit, mag_unit=mag_unit, time_unit=time_unit,
-                       acc_unit=acc_unit, delimiter=delimiter)
-        s = _cut(s, start, end)
-        _write_imported(s, output)
+        s = import_csv(source, parse_column_map(column_map), gyro_unit=gyro_unit, mag_unit=mag_unit,
+                       time_unit=time_unit, acc_unit=acc_unit, delimiter=delimiter)
+        s = cut(s, start, end)
+        write_imported(s, output)
         typer.echo(f"session written to {output}: {len(s.t_gyro_s)} gyro samples ({s.gyro_rate_hz:.1f} Hz), "
                    f"{len(s.t_mag_s)} magnetometer samples ({s.mag_rate_hz:.1f} Hz), {s.duration_s:.1f} s; "
                    f"columns {s.metadata['column_map']}")
@@ -276,16 +214,11 @@ def validate_command(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
 ):
     """Dead-reckon with the raw and the calibrated gyro: error against truth, or closure drift."""
-    from magyro.io.sessions import load_session, write_text_atomically
-    from magyro.studies.dead_reckoning import plot_validation, validate as run_validation
+    from magyro.api import validate_file
 
     def action():
-        s = load_session(session, gyro_unit=gyro_unit, mag_unit=mag_unit)
-        report = run_validation(s, calibration)
-        if plot is not None:
-            plot_validation(report, plot)
-        if output is not None:
-            write_text_atomically(output, report.to_json(include_series=series) + "\n")
+        report = validate_file(session, calibration, gyro_unit=gyro_unit, mag_unit=mag_unit, output=output, plot=plot,
+                               series=series)
         if not quiet:
             typer.echo(report.table())
             for path, what in ((output, "report"), (plot, "figure")):
@@ -297,7 +230,7 @@ def validate_command(
 
 @app.command("observe")
 def observe_command(
-    session: Path = typer.Argument(..., help="Session file (.parquet or .csv, SPEC section 2)."),
+    session: Path = typer.Argument(..., help="Session file (.parquet or .csv, docs/spec.md section 2)."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the report JSON here (schema magyro.observability/1)."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write a figure here (.png, .pdf, .svg): field-direction coverage, eigenvalue growth, rates. Needs matplotlib."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
@@ -315,24 +248,13 @@ def observe_command(
     Exit 0 when the excitation is sufficient or marginal, 3 when insufficient (the
     report is still printed and written), 2 when the input is unusable.
     """
-    from magyro.nls.solve import Options
-    from magyro.io.sessions import load_session, write_text_atomically
-    from magyro.observability.report import Targets, observe, plot_report, require_matplotlib
+    from magyro.api import observe_file
+    from magyro.options import Options
 
     def action():
-        if plot is not None:
-            require_matplotlib()  # fail before any work or output
-        s = load_session(session, gyro_unit=gyro_unit, mag_unit=mag_unit)
-        opts = Options(
-            gyro_noise_density_rad_s_sqrt_hz=None if gyro_noise_deg_s_sqrt_hz is None else float(np.deg2rad(gyro_noise_deg_s_sqrt_hz)),
-            mag_noise_std=mag_noise,
-        )
-        targets = Targets(target_scale_ppm, target_nonorth_deg, target_bias_deg_s, target_misalignment_deg)
-        report = observe(s, opts, targets)
-        if output is not None:
-            write_text_atomically(output, report.to_json() + "\n")
-        if plot is not None:
-            plot_report(report, plot)
+        options = Options.in_user_units(gyro_noise_deg_s_sqrt_hz, mag_noise)
+        targets = (target_scale_ppm, target_nonorth_deg, target_bias_deg_s, target_misalignment_deg)
+        report = observe_file(session, options, targets, gyro_unit=gyro_unit, mag_unit=mag_unit, output=output, plot=plot)
         if not quiet:
             typer.echo(report.table())
             for path, what in ((output, "report"), (plot, "figure")):

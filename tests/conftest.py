@@ -12,9 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from magyro.nls.solve import calibrate
-from magyro.io.sessions import load_session, write_session
-from magyro.studies.simulate import load_problem, simulate
+from magyro import calibrate
+from magyro.io import load_session, write_session
+from magyro.studies.scenario import load_problem
+from magyro.studies.simulate import simulate
 
 PAPER_SEEDS = (11, 12)
 PHONE_SEEDS = (11, 12)

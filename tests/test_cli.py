@@ -1,4 +1,4 @@
-"""`magyro` on the command line (SPEC sections 3 and 4), run as a subprocess."""
+"""`magyro` on the command line (docs/spec.md sections 3 and 4), run as a subprocess."""
 from __future__ import annotations
 
 import dataclasses
@@ -13,10 +13,12 @@ import pytest
 
 import magyro
 from magyro import so3
-from magyro.nls.solve import Options, prepare
+from magyro.options import Options
+from magyro.front.prepare import prepare
 from magyro.errors import InputError
-from magyro.io.sessions import MAX_PLAUSIBLE_RATE_RAD_S, MIN_SAMPLES, load_session, write_session
-from magyro.studies.simulate import load_problem, simulate
+from magyro.io import MAX_PLAUSIBLE_RATE_RAD_S, MIN_SAMPLES, load_session, write_session
+from magyro.studies.scenario import load_problem
+from magyro.studies.simulate import simulate
 
 SEED = 1
 
@@ -169,7 +171,7 @@ def test_gyro_unit_deg_s_gives_the_same_calibration(solved_dir, run_magyro):
 
 @pytest.fixture(scope="module")
 def table(sim_dir) -> pd.DataFrame:
-    """The simulated session as a DataFrame (SPEC table), to be spoilt by each case."""
+    """The simulated session as a DataFrame (the session table of docs/spec.md), to be spoilt by each case."""
     return pd.read_parquet(sim_dir / "X.parquet")
 
 

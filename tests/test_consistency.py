@@ -10,10 +10,13 @@ import pytest
 from magyro.result import consistency
 
 from magyro import so3
-from magyro.nls.solve import Options, calibrate, moving_session
+from magyro.options import Options
+from magyro import calibrate
+from magyro.front.prepare import moving_session
 from magyro.errors import ObservabilityError
-from magyro.io.sessions import write_session
-from magyro.studies.simulate import load_problem, simulate
+from magyro.io import write_session
+from magyro.studies.scenario import load_problem
+from magyro.studies.simulate import simulate
 
 pytestmark = pytest.mark.slow  # three solves per session
 
@@ -43,13 +46,10 @@ def turned_second_half(session, truth, angle_deg: float):
 def test_halves_agree_within_their_std_when_the_model_holds(paper_checked):
     cal = paper_checked
     report = cal.consistency
-    rows = report["parameters"]
-    assert len(rows) == 12 and "failed" not in report
-    assert report["rms_z"] < consistency.MAX_RMS_Z, report["rms_z"]
-    assert report["max_abs_z"] < consistency.MAX_HALF_Z, (report["worst"], report["max_abs_z"])
-    for name, row in rows.items():
-        assert row["difference"] == pytest.approx(row["first"] - row["second"], abs=1e-15), name
-        assert row["split_std"] == pytest.approx(abs(row["difference"]) / 2), name
+    rows = report.parameters
+    assert len(rows) == 12 and report.compared
+    assert report.rms_z < consistency.MAX_RMS_Z, report.rms_z
+    assert report.max_abs_z < consistency.MAX_HALF_Z, (report.worst, report.max_abs_z)
     assert not [w for w in cal.warnings if "halves" in w], cal.warnings
     # the halves are real calibrations of half the data: each sits near the full estimate
     assert abs(rows["K_g[0,0]"]["first"] - cal.K_g[0, 0]) < 5e-3
@@ -59,18 +59,18 @@ def test_a_magnetometer_turned_half_way_is_caught(paper, paper_checked):
     session, truth = paper
     cal = calibrate(turned_second_half(session, truth, 0.5), Options(split_check=True))
     report = cal.consistency
-    assert report["rms_z"] > consistency.MAX_RMS_Z, report["rms_z"]
-    assert report["worst"].startswith("misalignment_d"), report["worst"]
+    assert report.rms_z > consistency.MAX_RMS_Z, report.rms_z
+    assert report.worst.startswith("misalignment_d"), report.worst
     # C_b_m -> Rz(0.5 deg) C_b_m in the second half: the halves' difference in d turns by 0.5 deg about
     # the m frame's z axis, which is C_b_m^T e_z in the gyro frame; the first half is the same data
     names = [f"misalignment_d{a}_deg" for a in "xyz"]
-    before = paper_checked.consistency["parameters"]
-    shift = np.array([before[n]["difference"] - report["parameters"][n]["difference"] for n in names])
+    before = paper_checked.consistency.parameters
+    shift = np.array([before[n]["difference"] - report.parameters[n]["difference"] for n in names])
     axis = paper_checked.C_b_m.T @ np.array([0.0, 0.0, 1.0])
     np.testing.assert_allclose(shift, 0.5 * axis, atol=0.01)
-    assert report["parameters"]["K_g[0,0]"]["first"] == pytest.approx(before["K_g[0,0]"]["first"], abs=1e-9)
+    assert report.parameters["K_g[0,0]"]["first"] == pytest.approx(before["K_g[0,0]"]["first"], abs=1e-9)
     warning = [w for w in cal.warnings if "halves" in w]
-    assert len(warning) == 1 and "understates the error" in warning[0] and report["worst"] in warning[0]
+    assert len(warning) == 1 and "understates the error" in warning[0] and report.worst in warning[0]
 
 
 def test_a_half_that_cannot_be_solved_is_reported(paper):
@@ -81,8 +81,8 @@ def test_a_half_that_cannot_be_solved_is_reported(paper):
         raise ObservabilityError("the motion does not excite every gyro parameter: rank 9 of 12", None)
 
     report = consistency.split_check(session, full, Options(), refuse)
-    assert len(report["failed"]) == 2 and "rank 9 of 12" in report["failed"][0]
-    assert report["failed"][0].startswith("first half (")
+    assert len(report.failed) == 2 and "rank 9 of 12" in report.failed[0]
+    assert report.failed[0].startswith("first half (")
     warning = consistency.split_warning(report)
     assert "could not calibrate each half" in warning and "record longer" in warning
 

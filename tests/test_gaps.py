@@ -11,9 +11,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from magyro.nls.solve import calibrate, default_stride
-from magyro.nls.problem import build_grid, segment_starts
-from magyro.studies.simulate import load_problem, simulate
+from magyro import calibrate
+
+from magyro.nls.solve import default_stride
+from magyro.nls.grid import build_grid, segment_starts
+from magyro.studies.scenario import load_problem
+from magyro.studies.simulate import simulate
 
 from test_calibrate import check_gyro_recovery
 
@@ -58,5 +61,5 @@ def test_a_one_second_gap_costs_nothing_and_changes_little():
     assert cal.fit["residuals"] == 3 * n_mag + 3 * (grid.nodes - 1)
     assert not cal.fit["suspect_segments"], cal.fit["suspect_segments"]
     full = calibrate(session)                              # 1 % fewer samples: the estimates hardly move
-    assert np.all(np.abs(cal.K_g - full.K_g) <= 0.5 * full.std["K_g"] + 1e-12)
-    assert np.all(np.abs(cal.bias_deg_s - full.bias_deg_s) <= 0.5 * full.std["bias_deg_s"])
+    assert np.all(np.abs(cal.K_g - full.K_g) <= 0.5 * full.std.K_g + 1e-12)
+    assert np.all(np.abs(cal.bias_deg_s - full.bias_deg_s) <= 0.5 * full.std.bias_deg_s)

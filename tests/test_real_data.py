@@ -13,11 +13,13 @@ import pytest
 import scipy.linalg
 
 from magyro import so3
-from magyro.nls.solve import Options, calibrate
-from magyro.io.importers import import_broad_movement
-from magyro.io.sessions import load_session
-from magyro.result.calibration import misalignment_vector
-from magyro.studies.simulate import load_problem, simulate
+from magyro.options import Options
+from magyro import calibrate
+from magyro.io import import_broad_movement
+from magyro.io import load_session
+from magyro.result.reported import misalignment_vector
+from magyro.studies.scenario import load_problem
+from magyro.studies.simulate import simulate
 from magyro.studies.dead_reckoning import validate
 
 REPO = Path(__file__).resolve().parents[1]
@@ -55,9 +57,9 @@ def broad02():
 @pytest.mark.slow
 def test_shipped_trial_bias_agrees_with_the_rests(broad02):
     _, cal = broad02
-    assert cal.rests is not None and cal.rests["seconds"] > 2.0, cal.rests
-    diff = np.asarray(cal.rests["estimate_minus_rest_deg_s"])
-    print(f"\nbroad-02 bias {cal.bias_deg_s} deg/s, rests {cal.rests['bias_deg_s']}, estimate - rest {diff}")
+    assert cal.rests is not None and cal.rests.seconds > 2.0, cal.rests
+    diff = np.asarray(cal.rests.estimate_minus_rest_deg_s)
+    print(f"\nbroad-02 bias {cal.bias_deg_s} deg/s, rests {cal.rests.bias_deg_s}, estimate - rest {diff}")
     assert np.all(np.abs(diff) <= 0.05), diff
 
 
@@ -65,7 +67,7 @@ def test_shipped_trial_bias_agrees_with_the_rests(broad02):
 def test_shipped_trial_magnetometer_lag(broad02):
     """BROAD's magnetometer lags the gyro by about 10 ms."""
     _, cal = broad02
-    tau, std = cal.time_offset_s, float(cal.std["time_offset_s"])
+    tau, std = cal.time_offset_s, float(cal.std.time_offset_s)
     print(f"\nbroad-02 magnetometer lag {1e3 * tau:.2f} +/- {1e3 * std:.3f} ms")
     assert cal.time_offset_estimated
     assert 0.005 <= tau <= 0.020, tau
@@ -122,7 +124,7 @@ def rq_positive(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def predicted_distorted(cal) -> dict:
     """What the calibration of the distorted session must be, from the undistorted one.
 
-    Undistorted model (SPEC 1): y_m = R^-1 C_i^m m^i + h,  w^m = K y_g + eps,
+    Undistorted model (docs/spec.md section 1): y_m = R^-1 C_i^m m^i + h,  w^m = K y_g + eps,
     K = C_b^m K_g, eps = C_b^m eps_b, i = the m frame at the first sample.
 
     Gyro, y' = A y + b:  y = A^-1 (y' - b), so in the *same* m frame
@@ -169,16 +171,16 @@ def distortion_z_scores(cal_d, pred) -> dict[str, np.ndarray]:
     """Distorted solve minus prediction, in units of the distorted solve's own std."""
     s = cal_d.std
     return {
-        "K_g": z_scores(cal_d.K_g[UPPER], pred["K_g"][UPPER], s["K_g"][UPPER]),
-        "bias_deg_s": z_scores(cal_d.bias_deg_s, pred["bias_deg_s"], s["bias_deg_s"]),
-        "misalignment_deg": np.rad2deg(misalignment_vector(pred["C_b_m"], cal_d.C_b_m)) / s["misalignment_deg"],
-        "K": z_scores(cal_d.K, pred["K"], s["K"]).ravel(),
+        "K_g": z_scores(cal_d.K_g[UPPER], pred["K_g"][UPPER], s.K_g[UPPER]),
+        "bias_deg_s": z_scores(cal_d.bias_deg_s, pred["bias_deg_s"], s.bias_deg_s),
+        "misalignment_deg": np.rad2deg(misalignment_vector(pred["C_b_m"], cal_d.C_b_m)) / s.misalignment_deg,
+        "K": z_scores(cal_d.K, pred["K"], s.K).ravel(),
         # eps' = C_b^m' eps_b': its per-axis std is the bias std turned by a few degrees
-        "eps_deg_s": z_scores(np.rad2deg(cal_d.eps_rad_s), pred["eps_deg_s"], s["bias_deg_s"]),
-        "R": z_scores(cal_d.R[UPPER], pred["R"][UPPER], s["R"][UPPER]),
-        "h": z_scores(cal_d.h, pred["h"], s["h"]),
-        "field_i": z_scores(cal_d.field_i, pred["field_i"], s["field_i"]),
-        "time_offset_s": np.atleast_1d(z_scores(cal_d.time_offset_s, pred["time_offset_s"], s["time_offset_s"])),
+        "eps_deg_s": z_scores(np.rad2deg(cal_d.eps_rad_s), pred["eps_deg_s"], s.bias_deg_s),
+        "R": z_scores(cal_d.R[UPPER], pred["R"][UPPER], s.R[UPPER]),
+        "h": z_scores(cal_d.h, pred["h"], s.h),
+        "field_i": z_scores(cal_d.field_i, pred["field_i"], s.field_i),
+        "time_offset_s": np.atleast_1d(z_scores(cal_d.time_offset_s, pred["time_offset_s"], s.time_offset_s)),
     }
 
 
@@ -213,11 +215,11 @@ def test_known_distortions_move_the_parameters_by_many_std(broad02):
     pred = predicted_distorted(cal)
     s = cal.std
     moved = {
-        "K_g diagonal": np.abs(np.diag(pred["K_g"] - cal.K_g)) / np.diag(s["K_g"]),
-        "bias_deg_s": np.abs(pred["bias_deg_s"] - cal.bias_deg_s) / s["bias_deg_s"],
-        "misalignment_deg": np.abs(np.rad2deg(misalignment_vector(cal.C_b_m, pred["C_b_m"]))) / s["misalignment_deg"],
-        "R diagonal": np.abs(np.diag(pred["R"] - cal.R)) / np.diag(s["R"]),
-        "h": np.abs(pred["h"] - cal.h) / s["h"],
+        "K_g diagonal": np.abs(np.diag(pred["K_g"] - cal.K_g)) / np.diag(s.K_g),
+        "bias_deg_s": np.abs(pred["bias_deg_s"] - cal.bias_deg_s) / s.bias_deg_s,
+        "misalignment_deg": np.abs(np.rad2deg(misalignment_vector(cal.C_b_m, pred["C_b_m"]))) / s.misalignment_deg,
+        "R diagonal": np.abs(np.diag(pred["R"] - cal.R)) / np.diag(s.R),
+        "h": np.abs(pred["h"] - cal.h) / s.h,
     }
     for name, values in moved.items():
         assert np.max(values) > 10.0, (name, values)
@@ -250,14 +252,14 @@ def gyro_errors(cal, problem) -> dict[str, np.ndarray]:
 
 
 def gyro_stds(cal) -> dict[str, np.ndarray]:
-    return {"K_g": cal.std["K_g"][UPPER], "bias_deg_s": cal.std["bias_deg_s"],
-            "misalignment_deg": cal.std["misalignment_deg"]}
+    return {"K_g": cal.std.K_g[UPPER], "bias_deg_s": cal.std.bias_deg_s,
+            "misalignment_deg": cal.std.misalignment_deg}
 
 
 @pytest.mark.slow
 def test_simulated_lag_is_recovered(lagged):
     problem, cal, _ = lagged
-    tau, std = cal.time_offset_s, float(cal.std["time_offset_s"])
+    tau, std = cal.time_offset_s, float(cal.std.time_offset_s)
     print(f"\nsimulated lag {1e3 * LAG_S} ms: estimated {1e3 * tau:.3f} +/- {1e3 * std:.3f} ms "
           f"({(tau - LAG_S) / std:+.2f} std)")
     assert std > 0
@@ -290,12 +292,12 @@ def test_ignoring_the_lag_costs_accuracy(lagged):
     print("\nphone-module, 12 ms lag: RMS |error| / std (std of the lag-estimating solve), with / without the lag:")
     for name, (a, b) in rms.items():
         print(f"  {name:18s} {a:.2f} / {b:.2f}")
-    print(f"  magnetometer noise used: {with_lag.noise['mag_std']:.3f} / {without_lag.noise['mag_std']:.3f} uT")
+    print(f"  magnetometer noise used: {with_lag.noise.mag_std:.3f} / {without_lag.noise.mag_std:.3f} uT")
     k_with, k_without = rms["K_g"]
     assert k_without > 3.0 * k_with and k_without > 4.0, rms["K_g"]
     m_with, m_without = rms["misalignment_deg"]
     assert m_without > 1.5 * m_with and m_without > 2.0, rms["misalignment_deg"]
-    assert without_lag.noise["mag_std"] > 2.0 * with_lag.noise["mag_std"]
+    assert without_lag.noise.mag_std > 2.0 * with_lag.noise.mag_std
     assert not without_lag.time_offset_estimated and without_lag.time_offset_s == 0.0
 
 
@@ -343,7 +345,7 @@ def test_undisturbed_trial_gives_no_field_warning(broad09):
 def test_split_half_check_says_the_std_is_too_small_on_a_real_trial(broad09):
     """docs/real-data.md section 2: the halves of trial 09 disagree by 2.9 sigma RMS (simulated: at most 1.35)."""
     report = broad09.consistency
-    assert report["rms_z"] > 2.0, report["rms_z"]
+    assert report.rms_z > 2.0, report.rms_z
     assert [w for w in broad09.warnings if "halves of the recording disagree" in w], broad09.warnings
-    worst = report["parameters"][report["worst"]]
+    worst = report.parameters[report.worst]
     assert worst["split_std"] > 2.0 * worst["reported_std"], worst

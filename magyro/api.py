@@ -1,0 +1,186 @@
+"""The Python API in one place: what `magyro solve` and `magyro observe` do, for callers of the library.
+
+    import magyro
+    session = magyro.load_session("data/broad-02.parquet")
+    cal = magyro.calibrate(session)                                   # the joint least squares
+    cal = magyro.calibrate(session, magyro.Options(force=True), method=magyro.EKF())
+    report = magyro.observe(session)                                  # is the motion enough?
+
+`Options` holds what is true of the sensors and the recording; the method
+object (`NLS`, `EKF`) holds that method's own knobs.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+from magyro.errors import InputError
+from magyro.options import Options
+from magyro.result.calibration import Calibration
+from magyro.session import Session
+
+METHOD_NAMES = ("nls", "ekf")
+
+
+def method_named(name: str, **knobs):
+    """The method object for a method's name ('nls' or 'ekf'), with its knobs."""
+    if name == "nls":
+        from magyro.nls.method import NLS
+
+        return NLS(**knobs)
+    if name == "ekf":
+        from magyro.ekf.method import EKF
+
+        return EKF(**knobs)
+    raise InputError(f"unknown method '{name}'; use nls or ekf")
+
+
+def calibrate(session: Session, options: Options | None = None, method=None) -> Calibration:
+    """Calibrate gyro and magnetometer from one session with `method` (default: `NLS()`).
+
+    With `Options(split_check=True)` each half of the recording is also
+    calibrated alone and compared (`Calibration.consistency`, and a warning
+    when they disagree); that needs the least squares.
+    """
+    options = options or Options()
+    method = method or method_named("nls")
+    if options.split_check and method.name != "nls":
+        raise InputError("--split-check needs --method nls (it compares two least-squares solves)")
+    cal = method.calibrate(session, replace(options, split_check=False))
+    if options.split_check:
+        add_split_check(cal, session, options, method)
+    return cal
+
+
+def add_split_check(cal: Calibration, session: Session, options: Options, method) -> None:
+    """Add the split-half consistency report (and its warning) to `cal`."""
+    from magyro.front.prepare import moving_session
+    from magyro.result import consistency
+
+    moving = moving_session(session, options)[0]
+    report = consistency.split_check(moving, cal, replace(options, split_check=False), method.calibrate)
+    cal.consistency = report
+    warning = consistency.split_warning(report)
+    if warning:
+        cal.warnings.append(warning)
+
+
+def observe(session: Session, options: Options | None = None, targets=None, method=None):
+    """The excitation report of `magyro observe`: rank, weak directions, coverage, predicted accuracy; no solve."""
+    from magyro.observability import observe as excitation_report
+
+    return excitation_report(session, options, targets, method=method)
+
+
+def solve_file(path, options: Options | None = None, method: str = "nls", method_knobs: dict | None = None, *,
+               gyro_unit: str | None = None, mag_unit: str | None = None, output=None, history=None,
+               history_plot=None) -> Calibration:
+    """`magyro solve`: load a session file, calibrate it, write the JSON (and the EKF's history) when asked.
+
+    `method_knobs` are the method's own settings; those left None keep their
+    defaults, and those of another method are ignored (the CLI offers the
+    least squares' knobs whatever the method).
+    """
+    from magyro.io import load_session, write_text_atomically
+
+    wants_history = history is not None or history_plot is not None
+    if method == "nls" and wants_history:
+        raise InputError("--history and --history-plot need --method ekf (the least squares has no estimate over time)")
+    chosen = method_named(method, **nls_knobs(method, method_knobs or {}))
+    options = options or Options()
+    if options.split_check and method != "nls":
+        raise InputError("--split-check needs --method nls (it compares two least-squares solves)")
+    session = load_session(path, gyro_unit=gyro_unit, mag_unit=mag_unit)
+    if wants_history:
+        cal, hist = chosen.calibrate_with_history(session, options)
+        write_history(hist, history, history_plot, title=f"{Path(path).name}: EKF estimates, +/- 3 sigma")
+    else:
+        cal = calibrate(session, options, chosen)
+    if output is not None:
+        write_text_atomically(output, cal.to_json() + "\n")
+    return cal
+
+
+def nls_knobs(method: str, knobs: dict) -> dict:
+    """The knobs that apply to `method`, without the unset ones."""
+    return {k: v for k, v in knobs.items() if v is not None} if method == "nls" else {}
+
+
+def write_history(history, path=None, plot_path=None, title: str = "") -> None:
+    """The EKF's estimates over time as Parquet and/or a figure."""
+    from magyro.ekf import plot_history
+
+    if path is not None:
+        history.write_parquet(path)
+    if plot_path is not None:
+        plot_history(history, plot_path, title=title)
+
+
+def observe_file(path, options: Options | None = None, targets=None, *, gyro_unit: str | None = None,
+                 mag_unit: str | None = None, output=None, plot=None):
+    """`magyro observe`: load a session file, report on its excitation, write the JSON and the figure when asked.
+
+    `targets` is a `Targets` or the tuple (scale ppm, non-orthogonality deg, bias deg/s, misalignment deg).
+    """
+    from magyro.io import load_session, write_text_atomically
+    from magyro.observability import Targets
+    from magyro.observability.plot import plot_report, require_matplotlib
+
+    if plot is not None:
+        require_matplotlib()  # fail before any work or output
+    if targets is not None and not isinstance(targets, Targets):
+        targets = Targets(*targets)
+    session = load_session(path, gyro_unit=gyro_unit, mag_unit=mag_unit)
+    report = observe(session, options, targets)
+    if output is not None:
+        write_text_atomically(output, report.to_json() + "\n")
+    if plot is not None:
+        plot_report(report, plot)
+    return report
+
+
+def simulate_file(problem: str, output, seed: int = 0) -> tuple[Session, Path]:
+    """`magyro simulate`: a session from a problem file (or a shipped problem's name), written with its
+    truth beside it as NAME.truth.json; returns the session and the truth's path."""
+    from magyro.io import write_session
+    from magyro.studies.scenario import load_problem
+    from magyro.studies.simulate import simulate, write_truth
+
+    session, truth = simulate(load_problem(problem), seed)
+    output = Path(output)
+    write_session(session, output)
+    truth_path = output.with_name(output.stem + ".truth.json")
+    write_truth(truth, truth_path)
+    return session, truth_path
+
+
+def montecarlo_study(problem: str, runs: int, *, jobs: int = 1, method: str = "nls", seed0: int = 0, output=None,
+                     csv_path=None, progress: bool = True):
+    """`magyro montecarlo`: `runs` seeded sessions of a problem, each solved; the table, written when asked.
+
+    `progress` shows a bar (or a line per run) on stderr.
+    """
+    from magyro.studies.montecarlo import progress_display, run_montecarlo
+    from magyro.studies.montecarlo_output import write_outputs
+    from magyro.studies.scenario import load_problem
+
+    scenario = load_problem(problem)
+    with progress_display(runs, enabled=progress) as show:
+        result = run_montecarlo(scenario, runs, jobs=jobs, method=method, seed0=seed0, progress=show)
+    write_outputs(result, output, csv_path)
+    return result
+
+
+def validate_file(path, calibration, *, gyro_unit: str | None = None, mag_unit: str | None = None, output=None,
+                  plot=None, series: bool = False):
+    """`magyro validate`: dead-reckon a session file with the raw and the calibrated gyro (a Calibration or the
+    path of its JSON); the report, its JSON and figure written when asked."""
+    from magyro.io import load_session, write_text_atomically
+    from magyro.studies.dead_reckoning import plot_validation, validate
+
+    report = validate(load_session(path, gyro_unit=gyro_unit, mag_unit=mag_unit), calibration)
+    if plot is not None:
+        plot_validation(report, plot)
+    if output is not None:
+        write_text_atomically(output, report.to_json(include_series=series) + "\n")
+    return report
