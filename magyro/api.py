@@ -19,8 +19,6 @@ from magyro.options import Options
 from magyro.result.calibration import Calibration
 from magyro.session import Session
 
-METHOD_NAMES = ("nls", "ekf")
-
 
 def method_named(name: str, **knobs):
     """The method object for a method's name ('nls' or 'ekf'), with its knobs."""

@@ -339,16 +339,6 @@ class ErrorStateEKF:
         """The full error-state covariance (17x17, or 26x26 with the consider states), symmetrised."""
         return 0.5 * (self.P + self.P.T)
 
-    @property
-    def covariance_theta(self) -> np.ndarray:
-        """12x12 covariance of [vec K (columns stacked), eps]."""
-        return self.covariance[3:15, 3:15]
-
-    @property
-    def field_covariance(self) -> np.ndarray:
-        """3x3 covariance of m^i (rank 2, in the plane normal to m^i)."""
-        return self.B @ self.covariance[IM, IM] @ self.B.T
-
     def input_covariance(self, cov_Rh: np.ndarray | None = None) -> np.ndarray:
         """24x24 covariance of [vec K, eps, R upper, h, m_i].
 

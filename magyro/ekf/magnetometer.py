@@ -36,18 +36,6 @@ class MagnetometerRefinement:
     rms_norm_error: float         # RMS of |R (y - h)| - 1 at the solution
     rms_norm_error_initial: float
 
-    @property
-    def std_R(self) -> np.ndarray:
-        sd = np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
-        out = np.zeros((3, 3))
-        for n, (i, j) in enumerate(UPPER):
-            out[i, j] = sd[n]
-        return out
-
-    @property
-    def std_h(self) -> np.ndarray:
-        return np.sqrt(np.maximum(np.diag(self.covariance)[6:], 0.0))
-
 
 def known_magnetometer(R, h) -> MagnetometerRefinement:
     """A magnetometer calibration taken as exact (the paper's Table I simulation assumes one)."""

@@ -69,12 +69,6 @@ def noise_floor(t_gyro_s, gyro_rad_s, gyro_sample_std_rad_s: float, mag_std_unit
     return float(np.sum(w * (gyro_sample_std_rad_s**2 + 2.0 * mag_std_unit_field**2 * (1.0 + rate2))))
 
 
-def count_rank(eigenvalues: np.ndarray, floor: float) -> tuple[int, float]:
-    """Rank against one scalar floor (the largest noise eigenvalue): a conservative count."""
-    tol = max(FLOOR_FACTOR * floor, NUMERICAL_RTOL * eigenvalues[-1])
-    return int(np.sum(eigenvalues > tol)), tol
-
-
 def noise_matrix(t_gyro_s, gyro_rad_s, t_mag_s, field_m, gyro_sample_std_rad_s: float, mag_std_unit_field: float) -> np.ndarray:
     """N: what per-sample sensor noise adds, in expectation, to the integral of M^T M (12 x 12)."""
     from magyro.observability.matrix import field_on_gyro_times

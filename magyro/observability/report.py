@@ -20,7 +20,6 @@ from magyro.observability.matrix import PARAMETER_NAMES
 from magyro.result.parts import Std
 
 SCHEMA = "magyro.observability/1"
-VERDICTS = ("sufficient", "marginal", "insufficient")
 SPHERE_BANDS = 12                 # equal-area grid of field directions: bands of equal height in z ...
 SPHERE_SECTORS = 12               # ... times sectors of equal longitude
 SPHERE_GRID = (f"{SPHERE_BANDS * SPHERE_SECTORS} equal-area cells: {SPHERE_BANDS} bands of equal height in z "
