@@ -170,7 +170,7 @@ def test_calibration_fields_like_the_nls(paper1):
     for key in ("K_g", "bias_deg_s", "misalignment_deg", "R", "h"):
         assert key in d["std"]
     assert np.isclose(np.linalg.norm(cal.field_i), 1.0)
-    assert 2.5 < cal.fit["normalised_innovation_squared_mean"] < 3.5   # 3 for a consistent filter
+    assert 2.5 < cal.fit.normalised_innovation_squared_mean < 3.5   # 3 for a consistent filter
 
 
 def test_calibrate_is_the_calibration_of_calibrate_with_history(paper1):

@@ -58,8 +58,8 @@ def test_a_one_second_gap_costs_nothing_and_changes_little():
     cal = calibrate(gapped)
     check_gyro_recovery(SimpleNamespace(cal=cal, truth=truth))
     n_mag = int(grid.mag_weight.sum())                    # the bridging segments add no residual
-    assert cal.fit["residuals"] == 3 * n_mag + 3 * (grid.nodes - 1)
-    assert not cal.fit["suspect_segments"], cal.fit["suspect_segments"]
+    assert cal.fit.residuals == 3 * n_mag + 3 * (grid.nodes - 1)
+    assert not cal.fit.suspect_segments, cal.fit.suspect_segments
     full = calibrate(session)                              # 1 % fewer samples: the estimates hardly move
     assert np.all(np.abs(cal.K_g - full.K_g) <= 0.5 * full.std.K_g + 1e-12)
     assert np.all(np.abs(cal.bias_deg_s - full.bias_deg_s) <= 0.5 * full.std.bias_deg_s)

@@ -327,7 +327,7 @@ def field_warnings(cal) -> list[str]:
 @needs_broad
 def test_magnet_beside_the_path_gives_a_clear_warning(broad30):
     print("\ntrial 30 warnings:\n  " + "\n  ".join(broad30.warnings))
-    print(f"  field change {broad30.fit['field_change']}")
+    print(f"  field change {broad30.fit.field_change}")
     assert field_warnings(broad30), broad30.warnings
 
 
@@ -335,7 +335,7 @@ def test_magnet_beside_the_path_gives_a_clear_warning(broad30):
 @pytest.mark.slow
 @needs_broad
 def test_undisturbed_trial_gives_no_field_warning(broad09):
-    print(f"\ntrial 09 warnings: {broad09.warnings}; field change {broad09.fit['field_change']}")
+    print(f"\ntrial 09 warnings: {broad09.warnings}; field change {broad09.fit.field_change}")
     assert not field_warnings(broad09), broad09.warnings
 
 

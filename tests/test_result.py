@@ -10,6 +10,7 @@ that is the case the QR split can and must refuse.
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from magyro.io import write_session
 from magyro.result.reported import misalignment_vector, qr_split
 from magyro.studies.scenario import load_problem
 from magyro.result.calibration import Calibration
+from magyro.result.fit import LeastSquaresFit
 from magyro.result.parts import Std
 from magyro.studies.simulate import simulate, truth_body_rate
 
@@ -191,3 +193,17 @@ def test_apply_turns_the_raw_gyro_into_the_true_rate(phone_solved):
     calibrated_error = np.sqrt(np.mean((cal.apply(session.gyro_rad_s)[0] - true_rate) ** 2))
     noise_rad_s = problem.gyro_noise_density_rad_s_sqrt_hz * np.sqrt(problem.gyro_rate_hz)
     assert calibrated_error < 1.2 * noise_rad_s < raw_error, (calibrated_error, noise_rad_s, raw_error)
+
+
+def test_fit_statistics_read_back_by_method(solved_phone, tmp_path):
+    """The fit section is the method's own type, written and read back whole."""
+    fit = solved_phone.fit
+    assert isinstance(fit, LeastSquaresFit) and fit.residuals > fit.unknowns > 0
+    assert 0.5 < fit.mag_rms_normalised < 1.5 and fit.field_change.max_fraction < 0.05
+    doc = solved_phone.to_dict()
+    doc["solver"]["method"] = "ekf"      # least-squares statistics under the filter's name
+    with pytest.raises(InputError, match="not the EKF's fit statistics"):
+        Calibration.from_json(json.dumps(doc))
+    doc["solver"]["method"] = "kalibr"
+    with pytest.raises(InputError, match="not one this version of magyro knows"):
+        Calibration.from_json(json.dumps(doc))

@@ -34,6 +34,7 @@ from magyro.errors import InputError
 from magyro.front.prepare import Prepared, prepare
 from magyro.options import Options
 from magyro.result.calibration import Calibration
+from magyro.result.fit import FilterFit
 from magyro.result.parts import Excitation, NoiseReport, SolverReport
 from magyro.result.reported import qr_split, std_from_covariance
 from magyro.session import Session
@@ -120,8 +121,7 @@ def assemble(filt: StreamingCalibrator, prep: Prepared, init: Initial, filter_s:
             "magnetometer_newton_iterations": int(ref.iterations),
             "magnetometer_bias_corrected": bool(ref.bias_corrected)}),
         noise=NoiseReport(prep.gyro_density, prep.sigma_mag),
-        fit={"mag_norm_rms": ref.rms_norm_error, "mag_norm_rms_ellipsoid": ref.rms_norm_error_initial,
-             "normalised_innovation_squared_mean": float(filt.nis_sum / max(filt.mag_updates, 1)),
-             "prior_std_K_eps": np.sqrt(np.diag(init.P0)).tolist()},
+        fit=FilterFit(float(ref.rms_norm_error), float(ref.rms_norm_error_initial),
+                      float(filt.nis_sum / max(filt.mag_updates, 1)), tuple(np.sqrt(np.diag(init.P0)).tolist())),
         time_offset_s=tau,
     )

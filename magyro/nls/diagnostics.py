@@ -17,6 +17,7 @@ from magyro.nls.problem import N_GLOBAL, JointProblem
 from magyro.nls.solve import Solution, residual_matrix
 from magyro.observability.gate import ObservabilityAnalysis
 from magyro.result.calibration import Calibration
+from magyro.result.fit import FieldChange, LeastSquaresFit, SuspectWindow
 from magyro.result.parts import Excitation, NoiseReport, RestCheck, SolverReport
 from magyro.result.reported import axis_mapping_warning, qr_split, std_from_covariance
 from magyro.session import Session
@@ -27,18 +28,21 @@ FIELD_WINDOW_S = 0.5
 MAX_FIELD_CHANGE = 0.05         # BROAD: 1-3 % across the capture volume; a magnet beside the path 7 %
 
 
-def residual_summary(problem: JointProblem, r: np.ndarray) -> dict:
-    """Fit statistics of the whitened residual matrix r (one row per interval)."""
+def residual_summary(problem: JointProblem, r: np.ndarray, session: Session, R: np.ndarray,
+                     h: np.ndarray) -> LeastSquaresFit:
+    """Fit statistics of the whitened residual matrix r (one row per interval) and of the field magnitude."""
     mag = r[:, :-3].reshape(-1, 3)[problem.grid.sample_mask]
     n_res = mag.size + r[:, -3:].size   # the segments bridging a gap have no magnetometer residual
     dof = n_res - problem.n_x
-    return {
-        "mag_rms_normalised": float(np.sqrt(np.mean(mag**2))),
-        "gyro_rms_normalised": float(np.sqrt(np.mean(r[:, -3:] ** 2))),
-        "variance_factor": float(np.sum(r**2)) / dof,
-        "residuals": int(n_res),
-        "unknowns": int(problem.n_x),
-    }
+    return LeastSquaresFit(
+        mag_rms_normalised=float(np.sqrt(np.mean(mag**2))),
+        gyro_rms_normalised=float(np.sqrt(np.mean(r[:, -3:] ** 2))),
+        variance_factor=float(np.sum(r**2)) / dof,
+        residuals=int(n_res),
+        unknowns=int(problem.n_x),
+        suspect_segments=suspect_segments(problem.grid, r),
+        field_change=field_magnitude_change(session, R, h),
+    )
 
 
 def runs_of_true(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -47,7 +51,7 @@ def runs_of_true(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
 
 
-def suspect_segments(grid: Grid, residuals: np.ndarray) -> list[dict]:
+def suspect_segments(grid: Grid, residuals: np.ndarray) -> tuple[SuspectWindow, ...]:
     """Windows where the magnetometer fits far worse than typical (spikes, iron or a magnet near the path)."""
     r = residuals[:, :-3]
     samples = 3 * grid.mag_weight.sum(axis=1)  # residual entries per interval with a magnetometer sample
@@ -59,16 +63,11 @@ def suspect_segments(grid: Grid, residuals: np.ndarray) -> list[dict]:
     has = count > 0   # a window inside a gap in the magnetometer record has nothing to judge
     typical = np.median(rms[has])
     bad = has & (rms > SUSPECT_FACTOR * typical)
-    out = []
-    for a, b in runs_of_true(bad):
-        out.append({
-            "t0_s": float(t[0] + a * SUSPECT_WINDOW_S), "t1_s": float(t[0] + (b + 1) * SUSPECT_WINDOW_S),
-            "residual_vs_typical": float(rms[a : b + 1].max() / typical),
-        })
-    return out
+    return tuple(SuspectWindow(float(t[0] + a * SUSPECT_WINDOW_S), float(t[0] + (b + 1) * SUSPECT_WINDOW_S),
+                               float(rms[a : b + 1].max() / typical)) for a, b in runs_of_true(bad))
 
 
-def field_magnitude_change(session: Session, R: np.ndarray, h: np.ndarray) -> dict:
+def field_magnitude_change(session: Session, R: np.ndarray, h: np.ndarray) -> FieldChange:
     """Largest departure of the calibrated field magnitude |R (y - h)| from 1, over FIELD_WINDOW_S windows.
 
     The method assumes a homogeneous field: its magnitude must not change along
@@ -79,8 +78,8 @@ def field_magnitude_change(session: Session, R: np.ndarray, h: np.ndarray) -> di
     mean = np.bincount(window, weights=norm) / np.maximum(np.bincount(window), 1)
     dev = np.abs(mean - 1.0)
     worst = int(np.argmax(dev))
-    return {"max_fraction": float(dev[worst]), "at_s": float(session.t_mag_s[0] + (worst + 0.5) * FIELD_WINDOW_S),
-            "median_fraction": float(np.median(dev))}
+    return FieldChange(float(dev[worst]), float(session.t_mag_s[0] + (worst + 0.5) * FIELD_WINDOW_S),
+                       float(np.median(dev)))
 
 
 def rest_check(found: rests.Rests | None, K_g: np.ndarray, bias_rad_s: np.ndarray) -> RestCheck | None:
@@ -92,28 +91,30 @@ def rest_check(found: rests.Rests | None, K_g: np.ndarray, bias_rad_s: np.ndarra
                      found.gyro_mean_rad_s, np.rad2deg(at_rest), np.rad2deg(bias_rad_s - at_rest))
 
 
-def warnings_for(segments: list[dict], analysis: ObservabilityAnalysis, C_b_m: np.ndarray,
-                 fit: ellipsoid.EllipsoidFit, field_change: dict) -> list[str]:
+def warnings_for(fit: LeastSquaresFit, analysis: ObservabilityAnalysis, C_b_m: np.ndarray,
+                 ellipsoid_fit: ellipsoid.EllipsoidFit) -> list[str]:
+    """The plain-language warnings of a solve (see the README's list)."""
     out = []
-    if field_change["max_fraction"] > MAX_FIELD_CHANGE:
+    change = fit.field_change
+    if change.max_fraction > MAX_FIELD_CHANGE:
         out.append(
-            f"the field magnitude changes by {100 * field_change['max_fraction']:.1f}% around "
-            f"{field_change['at_s']:.1f} s (typically {100 * field_change['median_fraction']:.1f}%): the field is not "
+            f"the field magnitude changes by {100 * change.max_fraction:.1f}% around "
+            f"{change.at_s:.1f} s (typically {100 * change.median_fraction:.1f}%): the field is not "
             "homogeneous there (a magnet or iron near the path) or the magnetometer is not linear; this calibration "
             "assumes a homogeneous field, so re-record away from iron, or try --loss huber"
         )
-    if fit.uniqueness < ellipsoid.MIN_UNIQUENESS:
+    if ellipsoid_fit.uniqueness < ellipsoid.MIN_UNIQUENESS:
         out.append(
-            f"the field directions cover little of the sphere (ellipsoid uniqueness {fit.uniqueness:.2f}): "
+            f"the field directions cover little of the sphere (ellipsoid uniqueness {ellipsoid_fit.uniqueness:.2f}): "
             "the magnetometer's R and h rest on the gyro as much as on the ellipsoid; turn through more orientations"
         )
     mapping = axis_mapping_warning(C_b_m)
     if mapping:
         out.append(mapping)
-    for seg in segments:
+    for seg in fit.suspect_segments:
         out.append(
-            f"the magnetometer does not fit the model during {seg['t0_s']:.1f}-{seg['t1_s']:.1f} s "
-            f"(residual {seg['residual_vs_typical']:.1f}x the typical): a magnet or iron near the path, or a spike; "
+            f"the magnetometer does not fit the model during {seg.t0_s:.1f}-{seg.t1_s:.1f} s "
+            f"(residual {seg.residual_vs_typical:.1f}x the typical): a magnet or iron near the path, or a spike; "
             "check the recording, or use --loss huber to weigh those samples down"
         )
     if not analysis.full_rank:
@@ -129,20 +130,16 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
     S, h, K, eps, m_i, tau = (np.array(v) for v in problem.physical_function(theta, g))
     h, eps, m_i, tau = h.ravel(), eps.ravel(), m_i.ravel(), float(tau.item())
     C, Kg = qr_split(K)
-    residuals = residual_matrix(problem, sol.x, sol.p)
-    fit = residual_summary(problem, residuals)
+    R = np.linalg.inv(S)
+    fit = residual_summary(problem, residual_matrix(problem, sol.x, sol.p), prep.session, R, h)
     # No a-posteriori variance-factor scaling: the noise levels are already calibrated (given, from
     # rests with their correlation, or re-weighted from the residuals' effective scale); the plain
     # factor counts correlated samples as independent and would undo that. It is reported in `fit`.
     std = std_from_covariance(propagate(problem, theta, g, np.linalg.inv(reduced.information), C))
-    segments = suspect_segments(grid, residuals)
-    rest = rest_check(prep.rests, Kg, C.T @ eps)
-    fit["suspect_segments"] = segments
-    fit["field_change"] = field_magnitude_change(prep.session, np.linalg.inv(S), h)
     a = prep.analysis
     stats = sol.stats
     return Calibration(
-        K_g=Kg, bias_rad_s=C.T @ eps, K=K, eps_rad_s=eps, C_b_m=C, R=np.linalg.inv(S), h=h,
+        K_g=Kg, bias_rad_s=C.T @ eps, K=K, eps_rad_s=eps, C_b_m=C, R=R, h=h,
         mag_unit=prep.session.mag_unit, field_i=m_i, std=std,
         observability=Excitation.of(a),
         solver=SolverReport("nls", stats["return_status"], int(stats["iter_count"]), float(sol.seconds), float(total_s),
@@ -152,6 +149,6 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
         fit=fit,
         time_offset_s=tau,
         time_offset_estimated=problem.n_theta > N_GLOBAL,
-        rests=rest,
-        warnings=warnings_for(segments, a, C, prep.fit, fit["field_change"]),
+        rests=rest_check(prep.rests, Kg, C.T @ eps),
+        warnings=warnings_for(fit, a, C, prep.fit),
     )

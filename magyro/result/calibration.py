@@ -10,6 +10,7 @@ import numpy as np
 from magyro import so3
 from magyro.errors import InputError
 from magyro.result.consistency import SplitCheck
+from magyro.result.fit import FilterFit, LeastSquaresFit, fit_from_dict
 from magyro.result.parts import (Excitation, NoiseReport, RestCheck, SolverReport, Std, as_list, read_array,
                                  read_number, read_section)
 
@@ -46,7 +47,7 @@ class Calibration:
     observability: Excitation
     solver: SolverReport
     noise: NoiseReport | None = None
-    fit: dict = field(default_factory=dict)   # the method's own fit statistics (see its docs)
+    fit: LeastSquaresFit | FilterFit | None = None   # the method's own fit statistics
     time_offset_s: float = 0.0     # magnetometer lag behind the gyro
     time_offset_estimated: bool = False
     rests: RestCheck | None = None
@@ -115,7 +116,7 @@ class Calibration:
             "observability": self.observability.to_dict(),
             "solver": self.solver.to_dict(),
             "noise": None if self.noise is None else self.noise.to_dict(),
-            "fit": self.fit,
+            "fit": None if self.fit is None else self.fit.to_dict(),
             **({"consistency": self.consistency.to_dict()} if self.consistency is not None else {}),
         }
 
@@ -226,7 +227,7 @@ def calibration_from_dict(data: dict) -> Calibration:
         field_i=read_array(data, "field_i", (3,), "the calibration"), std=Std.from_dict(std),
         observability=Excitation.from_dict(read_section(data, "observability")),
         solver=SolverReport.from_dict(read_section(data, "solver")),
-        noise=None if noise is None else NoiseReport.from_dict(noise), fit=data.get("fit") or {},
+        noise=None if noise is None else NoiseReport.from_dict(noise), fit=fit_from_dict(data["solver"]["method"], data.get("fit")),
         time_offset_s=read_number(data, "time_offset_s", "the calibration") if "time_offset_s" in data else 0.0,
         time_offset_estimated=bool(data.get("time_offset_estimated", False)),
         rests=None if rests is None else RestCheck.from_dict(rests), warnings=list(data.get("warnings", [])),
