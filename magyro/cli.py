@@ -95,7 +95,7 @@ def solve(
 
 @app.command()
 def simulate(
-    problem: str = typer.Argument(..., help="Problem TOML file, or the name of one shipped in problems/ (e.g. paper-table1)."),
+    problem: str = typer.Argument(..., help="Problem file (TOML, describing a simulated scenario), or the name of one shipped in problems/ (e.g. paper-table1)."),
     output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv); the truth goes beside it as NAME.truth.json."),
     seed: int = typer.Option(0, "--seed", help="Noise seed (the motion is fixed by the problem)."),
 ):
@@ -111,7 +111,7 @@ def simulate(
 
 @app.command()
 def montecarlo(
-    problem: str = typer.Argument(..., help="Problem TOML file, or the name of one shipped in problems/ (e.g. paper-table1)."),
+    problem: str = typer.Argument(..., help="Problem file (TOML, describing a simulated scenario), or the name of one shipped in problems/ (e.g. paper-table1)."),
     runs: int = typer.Option(..., "--runs", "-n", min=1, help="Number of simulated sessions (noise seeds seed0 .. seed0+N-1)."),
     jobs: int = typer.Option(1, "--jobs", "-j", min=1, help="Solve in this many processes (one BLAS thread each)."),
     method: str = typer.Option("nls", "--method", help="nls, ekf, or nls,ekf to solve the same sessions with both."),

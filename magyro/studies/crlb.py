@@ -26,11 +26,11 @@ from magyro.nls.solve import default_stride
 from magyro.options import Options
 from magyro.result.reported import REPORTED, std_from_covariance
 from magyro.session import Session
-from magyro.studies.scenario import Problem
+from magyro.studies.scenario import Scenario
 from magyro.studies.simulate import field_i, truth_attitude
 
 
-def truth_linearisation(problem: Problem, t_node_s: np.ndarray) -> Linearisation:
+def truth_linearisation(problem: Scenario, t_node_s: np.ndarray) -> Linearisation:
     """The true parameters and attitude at the nodes, re-based so node 0 is the inertial frame."""
     C = truth_attitude(problem, t_node_s)
     C_rebased = np.einsum("ji,njk->nik", C[0], C)
@@ -40,7 +40,7 @@ def truth_linearisation(problem: Problem, t_node_s: np.ndarray) -> Linearisation
                          float(np.mean(np.diag(S0))), problem.mag_time_offset_s)
 
 
-def cramer_rao_covariance(problem: Problem, session: Session, options: Options | None = None,
+def cramer_rao_covariance(problem: Scenario, session: Session, options: Options | None = None,
                           nls: NLS | None = None) -> np.ndarray:
     """CRLB covariance of the reported vector (result.REPORTED layout), for the NLS method `nls` (default NLS())."""
     options, nls = options or Options(), nls or NLS()
@@ -53,7 +53,7 @@ def cramer_rao_covariance(problem: Problem, session: Session, options: Options |
     return information_covariance(jp, lin, p)
 
 
-def cramer_rao_std(problem: Problem, session: Session, options: Options | None = None, nls: NLS | None = None) -> dict:
+def cramer_rao_std(problem: Scenario, session: Session, options: Options | None = None, nls: NLS | None = None) -> dict:
     """CRLB one-sigma of every reported parameter (laid out like Calibration.std)."""
     return std_from_covariance(cramer_rao_covariance(problem, session, options, nls))
 

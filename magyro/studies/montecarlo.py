@@ -42,7 +42,7 @@ from magyro.studies.crlb import cramer_rao_covariance, euler_std_deg
 from magyro.studies.montecarlo_output import MethodResult, MonteCarloResult
 from magyro.studies.montecarlo_table import PAPER_TABLE1_MEAN, PAPER_TABLE1_STD, matches_paper, table_rows
 from magyro.studies.montecarlo_values import Outcome, estimate_values, parameters, std_values, truth_values
-from magyro.studies.scenario import Problem
+from magyro.studies.scenario import Scenario
 from magyro.studies.simulate import simulate
 
 # method name -> method object (`.calibrate(session, options) -> Calibration`), looked up when a
@@ -72,7 +72,7 @@ def parse_methods(method: str | Sequence[str]) -> list[str]:
 # --------------------------------------------------------------------------- one seed
 
 
-def crlb_task(problem: Problem, seed: int, options: Options, nls: NLS) -> dict:
+def crlb_task(problem: Scenario, seed: int, options: Options, nls: NLS) -> dict:
     """The CRLB rows at `seed`'s session, or the reason there is none."""
     t0 = time.perf_counter()
     try:
@@ -85,7 +85,7 @@ def crlb_task(problem: Problem, seed: int, options: Options, nls: NLS) -> dict:
         return {"values": {}, "error": one_line(exc, limit=None), "seconds": time.perf_counter() - t0}
 
 
-def run_seed(problem: Problem, seed: int, methods: dict, options: Options) -> list[Outcome]:
+def run_seed(problem: Scenario, seed: int, methods: dict, options: Options) -> list[Outcome]:
     """Simulate seed's session once and solve it with every method (name -> method object).
 
     Never raises (but on Ctrl-C): a failure becomes a failed Outcome.
@@ -137,7 +137,7 @@ def _single_threaded_children():
                 os.environ[name] = value
 
 
-def _run_in_pool(problem: Problem, seeds: list[int], methods: dict, options: Options, nls: NLS, workers: int,
+def _run_in_pool(problem: Scenario, seeds: list[int], methods: dict, options: Options, nls: NLS, workers: int,
                  start_method: str, finished: Callable[[int, list[Outcome]], None]) -> dict:
     """Every seed in `workers` processes (`finished` called as each completes); returns the CRLB task's result."""
     context = multiprocessing.get_context(start_method)
@@ -167,7 +167,7 @@ def _run_in_pool(problem: Problem, seeds: list[int], methods: dict, options: Opt
 # --------------------------------------------------------------------------- the study
 
 
-def run_montecarlo(problem: Problem, runs: int, jobs: int = 1, method: str | Sequence[str] = "nls", seed0: int = 0,
+def run_montecarlo(problem: Scenario, runs: int, jobs: int = 1, method: str | Sequence[str] = "nls", seed0: int = 0,
                    options: Options | None = None, progress: ProgressCallback | None = None,
                    start_method: str | None = None) -> MonteCarloResult:
     """`runs` sessions (seeds seed0 ..), each solved by every method; the table of the successes.

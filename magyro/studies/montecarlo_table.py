@@ -21,7 +21,7 @@ import numpy as np
 
 from magyro.result.reported import UPPER
 from magyro.studies.montecarlo_values import Outcome, Parameter, is_missing, json_number
-from magyro.studies.scenario import Problem
+from magyro.studies.scenario import Scenario
 
 GYRO_GROUPS = ("K_g", "bias_deg_s", "misalignment_deg")
 
@@ -47,7 +47,7 @@ PAPER_SETUP = {"duration_s": 100.0, "gyro_noise_density_deg_s_sqrt_hz": 0.02, "m
                "misalignment_euler_deg": [10.0, 20.0, 15.0]}
 
 
-def matches_paper(problem: Problem) -> bool:
+def matches_paper(problem: Scenario) -> bool:
     """True when the problem is the paper's simulation (so its Table I std applies)."""
     p = PAPER_SETUP
     return (math.isclose(problem.duration_s, p["duration_s"])

@@ -26,7 +26,7 @@ from magyro import so3
 from magyro.errors import one_line
 from magyro.result.parts import Std
 from magyro.result.reported import UPPER, misalignment_vector
-from magyro.studies.scenario import Problem
+from magyro.studies.scenario import Scenario
 
 
 @dataclass(frozen=True)
@@ -70,13 +70,13 @@ def _flatten(K_g, bias_deg_s, misalignment_deg, euler_deg, R, h, time_offset_s=N
     return out
 
 
-def truth_values(problem: Problem) -> dict[str, float]:
+def truth_values(problem: Scenario) -> dict[str, float]:
     """The true value of every row; the misalignment error d is 0 at truth."""
     return _flatten(problem.K_g, problem.gyro_bias_deg_s, np.zeros(3), so3.dcm_to_euler(problem.C_b_m),
                     problem.R, problem.hard_iron, problem.mag_time_offset_s)
 
 
-def estimate_values(cal, problem: Problem) -> dict[str, float]:
+def estimate_values(cal, problem: Scenario) -> dict[str, float]:
     """A calibration's estimate of every row.
 
     misalignment_deg = d with C_true = C_est Exp(d) (misalignment_vector(C_est, C_true));

@@ -1,12 +1,14 @@
-"""A simulated scenario: the `Problem` a TOML file in ``problems/`` describes, read and checked.
+"""Problem files: the simulated `Scenario` a TOML file in ``problems/`` describes, read and checked.
 
-A *problem* (documented at the top of ``problems/paper-table1.toml``) fixes the
-sensors, their errors and the motion; `load_problem` reads one by path or by
+A problem file (documented at the top of ``problems/paper-table1.toml``) fixes the
+sensors, their errors and the motion of a scenario. The word "problem" stays with the
+files and the command line (`magyro simulate PROBLEM`); in code a problem is the joint
+least squares (`magyro.nls.problem`), and what a file describes is a `Scenario`. `load_problem` reads one by path or by
 the name of a shipped file and raises InputError with a plain message when it
 is unusable. Turning a problem into samples is `magyro.studies.simulate`.
 
 The motion (`Motion`) is drawn from its own ``motion.seed``, so every noise
-seed of a problem sees the same motion; `Problem` also derives what the sensor
+seed of a problem sees the same motion; `Scenario` also derives what the sensor
 model needs from the file's numbers (C_b^m, K = C_b^m K_g, R, the field m^w).
 """
 from __future__ import annotations
@@ -57,7 +59,7 @@ class Motion:
 
 
 @dataclass(frozen=True, eq=False)
-class Problem:
+class Scenario:
     """A complete simulated scenario; see problems/paper-table1.toml for the keys."""
 
     name: str
@@ -149,7 +151,7 @@ def resolve_problem_path(path_or_name: str | os.PathLike) -> Path:
     raise InputError(f"problem '{text}' not found (no such file; shipped problems: {known})")
 
 
-def load_problem(path_or_name: str | os.PathLike) -> Problem:
+def load_problem(path_or_name: str | os.PathLike) -> Scenario:
     """Read and check a problem TOML; raise InputError with a plain message if unusable."""
     path = resolve_problem_path(path_or_name)
     try:
@@ -161,12 +163,12 @@ def load_problem(path_or_name: str | os.PathLike) -> Problem:
     return parse_problem(raw, source=str(path), default_name=path.stem)
 
 
-def parse_problem(raw: dict, source: str = "<dict>", default_name: str = "problem") -> Problem:
-    """Build a Problem from the parsed TOML tables, checking keys, shapes and ranges."""
+def parse_problem(raw: dict, source: str = "<dict>", default_name: str = "problem") -> Scenario:
+    """Build a Scenario from the parsed TOML tables, checking keys, shapes and ranges."""
     _check_keys(raw, source)
     p, g, mis, mag, mo = (raw.get(s, {}) for s in ("problem", "gyro", "misalignment", "magnetometer", "motion"))
     where = lambda sec: f"{source} [{sec}]"  # noqa: E731
-    problem = Problem(
+    problem = Scenario(
         name=_string(p.get("name", default_name), where("problem"), "name"),
         description=_string(p.get("description", ""), where("problem"), "description"),
         duration_s=_positive(p["duration_s"], where("problem"), "duration_s"),
@@ -243,7 +245,7 @@ def _parse_motion(mo: dict, where: str) -> Motion:
     )
 
 
-def _check_consistency(problem: Problem, source: str) -> None:
+def _check_consistency(problem: Scenario, source: str) -> None:
     m = problem.motion
     if abs(problem.dip_deg) > 90.0:
         raise InputError(f"{source} [magnetometer]: dip_deg must be within [-90, 90], got {problem.dip_deg}")

@@ -1,6 +1,6 @@
 """Simulated sessions with an analytic truth (docs/spec.md section 1 model).
 
-`simulate(problem, seed)` turns a `Problem` (`magyro.studies.scenario`) into a
+`simulate(problem, seed)` turns a `Scenario` (`magyro.studies.scenario`) into a
 `Session` plus a truth dict laid out like the calibration JSON.
 
 Truth is analytic. The body (gyro frame) attitude is a product of elementary
@@ -38,7 +38,7 @@ import numpy as np
 
 from magyro import so3
 from magyro.session import Session
-from magyro.studies.scenario import AXES, Problem
+from magyro.studies.scenario import AXES, Scenario
 
 TRUTH_SCHEMA = "magyro.truth/1"
 
@@ -59,7 +59,7 @@ class Factor:
     ramp_s: float
 
 
-def motion_factors(problem: Problem) -> list[Factor]:
+def motion_factors(problem: Scenario) -> list[Factor]:
     """The rotation factors of the problem's motion, drawn from motion.seed (not the noise seed)."""
     m = problem.motion
     if m.kind == "static":
@@ -117,7 +117,7 @@ def _factor_rotations(factors: list[Factor], t: np.ndarray):
     return out
 
 
-def truth_body_attitude(problem: Problem, t_s) -> np.ndarray:
+def truth_body_attitude(problem: Scenario, t_s) -> np.ndarray:
     """C_b^w(t) = C0 prod_j Exp(a_j(t) u_j), shape (N, 3, 3)."""
     t = np.atleast_1d(np.asarray(t_s, dtype=float))
     C = np.broadcast_to(problem.C0, (len(t), 3, 3)).copy()
@@ -126,7 +126,7 @@ def truth_body_attitude(problem: Problem, t_s) -> np.ndarray:
     return C
 
 
-def truth_body_rate(problem: Problem, t_s) -> np.ndarray:
+def truth_body_rate(problem: Scenario, t_s) -> np.ndarray:
     """w_ib^b(t) in rad/s, gyro frame, (N, 3): sum_j (prod_{l>j} Exp(a_l u_l))^T adot_j u_j."""
     t = np.atleast_1d(np.asarray(t_s, dtype=float))
     w = np.zeros((len(t), 3))
@@ -137,24 +137,24 @@ def truth_body_rate(problem: Problem, t_s) -> np.ndarray:
     return w
 
 
-def inertial_from_world(problem: Problem) -> np.ndarray:
+def inertial_from_world(problem: Scenario) -> np.ndarray:
     """C_w^i = C_m^w(0)^T = C_b^m C_b^w(0)^T."""
     return problem.C_b_m @ truth_body_attitude(problem, [0.0])[0].T
 
 
-def field_i(problem: Problem) -> np.ndarray:
+def field_i(problem: Scenario) -> np.ndarray:
     """m^i, the unit field in the inertial frame."""
     mw = problem.field_w
     return inertial_from_world(problem) @ (mw / np.linalg.norm(mw))
 
 
-def truth_attitude(problem: Problem, t_s) -> np.ndarray:
+def truth_attitude(problem: Scenario, t_s) -> np.ndarray:
     """C_m^i(t) = C_w^i C_b^w(t) C_m^b, (N, 3, 3); identity at t = 0."""
     C_b_w = truth_body_attitude(problem, t_s)
     return inertial_from_world(problem) @ C_b_w @ problem.C_b_m.T
 
 
-def truth_rate_m(problem: Problem, t_s) -> np.ndarray:
+def truth_rate_m(problem: Scenario, t_s) -> np.ndarray:
     """w^m = C_b^m w^b, rad/s (N, 3), so that dC_m^i/dt = C_m^i (w^m x)."""
     return truth_body_rate(problem, t_s) @ problem.C_b_m.T
 
@@ -168,20 +168,20 @@ def sample_times(rate_hz: float, duration_s: float) -> np.ndarray:
     return np.arange(n) / rate_hz
 
 
-def gyro_clean(problem: Problem, t_s: np.ndarray) -> np.ndarray:
+def gyro_clean(problem: Scenario, t_s: np.ndarray) -> np.ndarray:
     """Noise-free y_g = K_g^-1 (w^b - eps_b), rad/s (N, 3)."""
     w = truth_body_rate(problem, t_s)
     return np.linalg.solve(problem.K_g, (w - problem.gyro_bias_rad_s).T).T
 
 
-def mag_clean(problem: Problem, t_stamp_s: np.ndarray) -> np.ndarray:
+def mag_clean(problem: Scenario, t_stamp_s: np.ndarray) -> np.ndarray:
     """Noise-free y_m = R^-1 C_i^m m^i + h at the stamps (field taken at stamp - time_offset)."""
     C_m_i = truth_attitude(problem, t_stamp_s - problem.mag_time_offset_s)
     m_m = np.einsum("nji,j->ni", C_m_i, field_i(problem))  # C_i^m m^i
     return m_m @ np.linalg.inv(problem.R).T + problem.hard_iron
 
 
-def simulate(problem: Problem, seed: int, noise_scale: float = 1.0) -> tuple[Session, dict]:
+def simulate(problem: Scenario, seed: int, noise_scale: float = 1.0) -> tuple[Session, dict]:
     """A session and its truth. `noise_scale` multiplies both noise levels (0 for noise-free)."""
     rng = np.random.default_rng(seed)
     t_g = sample_times(problem.gyro_rate_hz, problem.duration_s)
@@ -202,7 +202,7 @@ def simulate(problem: Problem, seed: int, noise_scale: float = 1.0) -> tuple[Ses
     return session, truth_dict(problem, seed, noise_scale)
 
 
-def truth_dict(problem: Problem, seed: int, noise_scale: float = 1.0) -> dict:
+def truth_dict(problem: Scenario, seed: int, noise_scale: float = 1.0) -> dict:
     """The true parameters, laid out like the calibration JSON (plain lists)."""
     return {
         "schema": TRUTH_SCHEMA,
