@@ -79,6 +79,8 @@ def solve_file(path, options: Options | None = None, method: str = "nls", method
     defaults, and those of another method are ignored (the CLI offers the
     least squares' knobs whatever the method).
     """
+    from magyro.io import check_outputs
+    check_outputs([path], [output, history, history_plot])  # before any work: no input overwritten, all writable
     from magyro.io import load_session, write_text_atomically
 
     wants_history = history is not None or history_plot is not None
@@ -120,6 +122,8 @@ def observe_file(path, options: Options | None = None, targets=None, *, gyro_uni
 
     `targets` is a `Targets` or the tuple (scale ppm, non-orthogonality deg, bias deg/s, misalignment deg).
     """
+    from magyro.io import check_outputs
+    check_outputs([path], [output, plot])  # before any work: no input overwritten, all writable
     from magyro.io import load_session, write_text_atomically
     from magyro.observability import Targets
     from magyro.observability.plot import plot_report, require_matplotlib
@@ -140,6 +144,8 @@ def observe_file(path, options: Options | None = None, targets=None, *, gyro_uni
 def simulate_file(problem: str, output, seed: int = 0) -> tuple[Session, Path]:
     """`magyro simulate`: a session from a problem file (or a shipped problem's name), written with its
     truth beside it as NAME.truth.json; returns the session and the truth's path."""
+    from magyro.io import check_outputs
+    check_outputs([problem], [output, Path(output).with_name(Path(output).stem + ".truth.json")])  # before any work
     from magyro.io import write_session
     from magyro.studies.scenario import load_problem
     from magyro.studies.simulate import simulate, write_truth
@@ -158,6 +164,8 @@ def montecarlo_study(problem: str, runs: int, *, jobs: int = 1, method: str = "n
 
     `progress` shows a bar (or a line per run) on stderr.
     """
+    from magyro.io import check_outputs
+    check_outputs([problem], [output, csv_path])  # before any work: no input overwritten, all writable
     from magyro.studies.montecarlo import progress_display, run_montecarlo
     from magyro.studies.montecarlo_output import write_outputs
     from magyro.studies.scenario import load_problem
@@ -173,6 +181,8 @@ def validate_file(path, calibration, *, gyro_unit: str | None = None, mag_unit: 
                   plot=None, series: bool = False):
     """`magyro validate`: dead-reckon a session file with the raw and the calibrated gyro (a Calibration or the
     path of its JSON); the report, its JSON and figure written when asked."""
+    from magyro.io import check_outputs
+    check_outputs([path, calibration], [output, plot])  # before any work: no input overwritten, all writable
     from magyro.io import load_session, write_text_atomically
     from magyro.studies.dead_reckoning import plot_validation, validate
 
@@ -182,3 +192,21 @@ def validate_file(path, calibration, *, gyro_unit: str | None = None, mag_unit: 
     if output is not None:
         write_text_atomically(output, report.to_json(include_series=series) + "\n")
     return report
+
+
+def check_file(path, gyro_unit: str | None = None, mag_unit: str | None = None, output=None, repairs=None):
+    """`magyro check`: load a session file and check the recording (clocks, gaps, held samples, saturation,
+    spikes, units), with what the repairs (`magyro.front.repairs.Repairs`, all on by default) fix and
+    the gyro holes they leave; the JSON (schema magyro.recording/1) written when asked. No solve.
+
+    Returns the `RecordingCheck`; `check.errors` are what make the recording unusable (exit 2 on the CLI).
+    """
+    from magyro.front.repairs import repair_recording
+    from magyro.io import check_outputs, load_session, write_text_atomically
+
+    check_outputs([path], [output])  # before any work: no input overwritten, the output writable
+    session = load_session(path, gyro_unit=gyro_unit, mag_unit=mag_unit)
+    check = repair_recording(session, repairs)[1]
+    if output is not None:
+        write_text_atomically(output, check.to_json() + "\n")
+    return check

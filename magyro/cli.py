@@ -191,6 +191,8 @@ def import_csv_command(
     from magyro.io import cut, import_csv, parse_column_map, write_imported
 
     def action():
+        from magyro.io import check_outputs
+        check_outputs([source], [output])  # before any work: the source is never overwritten, the output writable
         s = import_csv(source, parse_column_map(column_map), gyro_unit=gyro_unit, mag_unit=mag_unit,
                        time_unit=time_unit, acc_unit=acc_unit, delimiter=delimiter)
         s = cut(s, start, end)
@@ -265,6 +267,35 @@ def observe_command(
     report = run_guarded(action)
     if report.verdict == "insufficient":
         fail(f"insufficient excitation: {report.reason}. " + " ".join(report.advice), 3)
+
+
+@app.command("check")
+def check_command(
+    session: Path = typer.Argument(..., help="Session file (.parquet or .csv, docs/spec.md section 2)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the check as JSON here (schema magyro.recording/1)."),
+    gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
+    mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
+):
+    """Is the recording sound? Rates, jitter, bursts, gaps, held samples, clock drift, saturation, spikes, units;
+    what magyro repairs. No solve.
+
+    Exit 0 when nothing makes the recording unusable (the table is printed and written either way),
+    2 when something does: time not in seconds, a gyro unit that cannot be right, sensors without common time.
+    """
+    from magyro.api import check_file
+    from magyro.errors import InputError
+
+    def action():
+        check = check_file(session, gyro_unit=gyro_unit, mag_unit=mag_unit, output=output)
+        if not quiet:
+            typer.echo(check.table())
+            if output is not None:
+                typer.echo(f"check written to {output}")
+        if check.errors:
+            raise InputError(f"{session}: the recording is unusable as it is: {check.error_message()}")
+
+    run_guarded(action)
 
 
 def main():

@@ -350,8 +350,12 @@ def test_import_csv_plain_errors(tmp_path):
         import_csv(path, COLUMN_MAP, gyro_unit="deg/s", mag_unit="uT", time_unit="fortnight")
     with pytest.raises(InputError, match="unknown accelerometer unit"):
         import_csv(path, COLUMN_MAP, gyro_unit="deg/s", mag_unit="uT", time_unit="ms", acc_unit="furlong/s^2")
-    with pytest.raises(InputError, match="cannot be right; pass time unit ms"):  # ms stamps read as seconds
+    with pytest.raises(InputError, match=r"time unit 's', the time column looks like milliseconds \(median step 5 "
+                                         r"'seconds' = 200 Hz if ms\); import with --time-unit ms"):  # ms read as s
         import_csv(path, COLUMN_MAP, gyro_unit="deg/s", mag_unit="uT", time_unit="s")
+    with pytest.raises(InputError, match=r"looks like milliseconds \(median step 5 'ns' = 200 Hz if ms\); "
+                                         r"import with --time-unit ms"):  # ms read as ns
+        import_csv(path, COLUMN_MAP, gyro_unit="deg/s", mag_unit="uT", time_unit="ns")
     with pytest.raises(InputError, match="deg/s"):  # deg/s data labelled rad/s: io's plausibility check
         import_csv(path, COLUMN_MAP, gyro_unit="rad/s", mag_unit="uT", time_unit="ms")
     # mapping some magnetometer axes explicitly, the rest are guessed from the headers

@@ -45,8 +45,32 @@ def gyro_angle_turned_deg(session: Session) -> float:
     return float(np.rad2deg(np.sum(np.linalg.norm(session.gyro_rad_s[1:], axis=1) * np.diff(session.t_gyro_s))))
 
 
+UNIT_CHECK_BLOCK_S = 0.1       # the field's turning, too slow side: steps between means over 0.1 s blocks
+UNIT_CHECK_NOISE_STDS = 2.0     # ... each step counted only beyond this many noise stds of a step
+MAX_SLOW_RATE_RATIO = 0.25      # the gyro turned < 1/4 of the field's turning: rad/s labelled deg/s (57x)
+MIN_SEEN_TURN_DEG = 180.0       # ... judged only when the field turned this much beyond noise
+
+
 def check_gyro_unit(session: Session, field_m: np.ndarray) -> None:
-    """The gyro must turn the field as fast as the magnetometer sees it turn; deg/s labelled rad/s turns it 57x too fast."""
+    """The gyro must turn the field as fast as the magnetometer sees it turn, both ways.
+
+    deg/s labelled rad/s turns it 57x too fast: the turning predicted from the gyro,
+    integral |f x w| dt, against the field's path sampled every 0.1 s (noise only
+    lengthens that path, so a right unit never looks too fast). rad/s labelled deg/s
+    turns it 57x too slowly: the angle the gyro turned, integral |w| dt (free of the
+    misalignment; noise and bias only add to it), against the field's path between
+    0.1 s block means, each step counted beyond 2 noise stds (so a noisy or barely
+    turning field never looks fast; the noise comes from the field's norm, which turning
+    leaves alone, so fast motion is not mistaken for noise), and only when that path
+    exceeds 180 deg (a device that barely turns is too little motion, for the gate to
+    report). On BROAD trials 02 and 07 and the simulated sessions (also with 1-4 Hz
+    shaking, or 10 min of noisy rest) the gyro turns 1.1-2.1x that path; with rad/s
+    labelled deg/s, 0.020-0.037x. A time column that is not in seconds is named first.
+    """
+    from magyro.front.noise import MAD_TO_STD
+    from magyro.io.checks import check_time_unit
+
+    check_time_unit(session.t_gyro_s)  # stamps in ms would look like a gyro 1000x too fast
     t, y = session.t_gyro_s, session.gyro_rad_s
     step = max(1, int(round(0.1 * session.mag_rate_hz)))
     tm = session.t_mag_s[::step]
@@ -60,6 +84,25 @@ def check_gyro_unit(session: Session, field_m: np.ndarray) -> None:
         raise InputError(
             f"the gyro turns {predicted / seen:.0f}x faster than the magnetometer sees the field turn: "
             "the gyro looks like deg/s labelled rad/s; pass --gyro-unit deg/s"
+        )
+
+    block = np.floor((session.t_mag_s - session.t_mag_s[0]) / UNIT_CHECK_BLOCK_S).astype(np.int64)
+    count = np.bincount(block)
+    used = count > 0
+    if used.sum() < 8:
+        return
+    means = np.column_stack([np.bincount(block, field_m[:, i])[used] for i in range(3)]) / count[used, None]
+    # noise of a block mean, per axis: from the field's norm (turning moves it across, never along it)
+    radial_step = np.diff(np.bincount(block, np.linalg.norm(field_m, axis=1) - 1.0)[used] / count[used])
+    block_noise = MAD_TO_STD * np.median(np.abs(radial_step - np.median(radial_step))) / np.sqrt(2.0)
+    step_noise = 2.0 * block_noise  # two blocks, two directions across the field
+    path = np.sum(np.maximum(0.0, np.linalg.norm(np.diff(means, axis=0), axis=1) - UNIT_CHECK_NOISE_STDS * step_noise))
+    turned = np.sum(np.linalg.norm(y[inside], axis=1) * w)
+    if path > np.deg2rad(MIN_SEEN_TURN_DEG) and turned < MAX_SLOW_RATE_RATIO * path:
+        raise InputError(
+            f"the gyro turns {path / max(turned, 1e-12):.0f}x slower than the magnetometer sees the field turn "
+            f"(the gyro {np.rad2deg(turned):.0f} deg, the field {np.rad2deg(path):.0f} deg): the gyro looks like "
+            "rad/s labelled deg/s; pass --gyro-unit rad/s"
         )
 
 

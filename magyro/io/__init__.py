@@ -8,8 +8,9 @@
   benchmark trials (`magyro.io.broad`). `import_csv`, `guess_column_map`,
   `parse_column_map`: phone and logger CSV exports (`magyro.io.csv_export`).
 - `trim`, `cut`, `decimate`: a session cut in time or rate (`magyro.io.cutting`).
-- `write_text_atomically`, `write_atomically`: outputs that are whole or absent
-  (`magyro.io.atomic`).
+- `write_text_atomically`, `write_atomically`: outputs that are whole or absent;
+  `check_outputs(inputs, outputs)`: before any work, an output that is an input (or another
+  output) or cannot be written is refused (`magyro.io.atomic`).
 
 Every unusable input raises `magyro.errors.InputError` with one plain message.
 
@@ -28,7 +29,7 @@ _EXPORTS = {
     "session_table": "session_file", "PARQUET_SUFFIXES": "session_file",
     "session_from_table": "checks", "MIN_SAMPLES": "checks", "MAX_PLAUSIBLE_RATE_RAD_S": "checks",
     "trim": "cutting", "cut": "cutting", "decimate": "cutting",
-    "write_text_atomically": "atomic", "write_atomically": "atomic",
+    "write_text_atomically": "atomic", "write_atomically": "atomic", "check_outputs": "atomic",
     "import_broad": "broad", "import_broad_movement": "broad", "broad_movement_span": "broad",
     "convert_broad": "broad", "BROAD_CITATION": "broad", "BROAD_LICENSE": "broad",
     "import_csv": "csv_export", "guess_column_map": "csv_export", "parse_column_map": "csv_export",
@@ -37,13 +38,13 @@ _EXPORTS = {
 __all__ = [  # = list(_EXPORTS), spelled out for linters
     "load_session", "write_session", "write_imported", "session_table", "PARQUET_SUFFIXES",
     "session_from_table", "MIN_SAMPLES", "MAX_PLAUSIBLE_RATE_RAD_S", "trim", "cut", "decimate",
-    "write_text_atomically", "write_atomically", "import_broad", "import_broad_movement",
+    "write_text_atomically", "write_atomically", "check_outputs", "import_broad", "import_broad_movement",
     "broad_movement_span", "convert_broad", "BROAD_CITATION", "BROAD_LICENSE", "import_csv",
     "guess_column_map", "parse_column_map",
 ]
 
 if TYPE_CHECKING:
-    from magyro.io.atomic import write_atomically, write_text_atomically
+    from magyro.io.atomic import check_outputs, write_atomically, write_text_atomically
     from magyro.io.broad import (BROAD_CITATION, BROAD_LICENSE, broad_movement_span, convert_broad, import_broad,
                                  import_broad_movement)
     from magyro.io.checks import MAX_PLAUSIBLE_RATE_RAD_S, MIN_SAMPLES, session_from_table

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from magyro.errors import InputError, one_line
+from magyro.io.atomic import check_outputs
 from magyro.io.checks import session_from_table
 from magyro.io.columns import ACC_COLUMNS, GYRO_COLUMNS, MAG_COLUMNS, QUAT_COLUMNS, TIME_COLUMN
 from magyro.io.cutting import cut, decimate, trim
@@ -97,8 +98,10 @@ def convert_broad(path, output, *, movement: bool = False, rest_s: float = 3.0,
     `movement` keeps the marked movement span +/- `rest_s`; then `start_s`/`end_s` cut
     (`cut`); then every `decimate_by`-th sample is kept. The shipped data/broad-*.parquet
     are `convert_broad(trial, output, movement=True, compression_level=19)`
-    (data/PROVENANCE.md). Returns the written session.
+    (data/PROVENANCE.md). Returns the written session. An `output` that is the trial
+    file or cannot be written is refused before the trial is read.
     """
+    check_outputs([path], [output])
     session = import_broad_movement(path, rest_s) if movement else import_broad(path)
     session = decimate(cut(session, start_s, end_s), decimate_by)
     write_imported(session, output, compression_level=compression_level)

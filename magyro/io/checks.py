@@ -4,8 +4,10 @@ A table (a pandas DataFrame, or a `ColumnTable` read from a numeric Parquet file
 session layout becomes a `Session` only when: the required columns are there and an
 optional group is all or nothing; `t` is numeric, finite and strictly increasing; every
 sensor value is a finite number or empty, and a sensor group is on a row whole or not at
-all; there are at least `MIN_SAMPLES` gyro and magnetometer samples; the gyro unit is
-known and the gyro rates are plausible in it (deg/s data read as rad/s is caught).
+all; there are at least `MIN_SAMPLES` gyro and magnetometer samples; the time is in
+seconds (a gyro sampled between 1 Hz and 100 kHz: stamps in ms, us or ns are named as
+such, before any check on the rates could blame the gyro); the gyro unit is known and
+the gyro rates are plausible in it (deg/s data read as rad/s is caught).
 
 Everything wrong raises `InputError` (exit code 2) with one plain message naming the
 problem, where it is, and what to do. Rows are numbered from 0, not counting the header.
@@ -14,6 +16,7 @@ pandas is imported only for a DataFrame: a numeric Parquet session never needs i
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -24,6 +27,11 @@ from magyro.session import Session
 
 MIN_SAMPLES = 100
 MAX_PLAUSIBLE_RATE_RAD_S = 40.0  # ~2300 deg/s, beyond any MEMS gyro full scale
+MIN_PLAUSIBLE_STEP_S = 1e-5      # a gyro sampled faster than 100 kHz: the time is not in seconds
+MAX_PLAUSIBLE_STEP_S = 1.0       # slower than 1 Hz: no hand motion can be integrated; likely ms, us or ns
+TYPICAL_GYRO_RATE_HZ = 200.0     # among plausible readings of the stamps, the one nearest this is named
+TIME_UNITS_S = {"s": ("seconds", 1.0), "ms": ("milliseconds", 1e-3), "us": ("microseconds", 1e-6),
+                "ns": ("nanoseconds", 1e-9)}
 
 GYRO_UNIT_ALIASES = {
     "rad/s": "rad/s", "rad/sec": "rad/s", "rads": "rad/s", "rad_s": "rad/s",
@@ -62,6 +70,7 @@ def _checked_session(table, metadata: dict, source: str,
     t_mag_s, mag = _group_samples(t_s, values, MAG_COLUMNS)
     _check_sample_count("gyro", GYRO_COLUMNS, len(t_gyro_s))
     _check_sample_count("magnetometer", MAG_COLUMNS, len(t_mag_s))
+    check_time_unit(t_gyro_s)  # before the rates: time in ms makes every later check blame something else
     gyro_rad_s = gyro * _gyro_scale_to_rad_s(gyro_unit)
     _check_gyro_rate_plausible(gyro_rad_s, gyro_unit)
 
@@ -224,6 +233,39 @@ def _check_sample_count(sensor: str, group: tuple, n_samples: int) -> None:
 
 
 # --------------------------------------------------------------------------- units and rates
+
+
+def check_time_unit(t_gyro: np.ndarray, read_as: str = "s", fix: Callable[[str], str] | None = None) -> None:
+    """InputError unless the gyro's median sample interval, with the stamps read in `read_as`, is 10 us to 1 s.
+
+    The stamps may be in another unit of TIME_UNITS_S: the message names the one
+    that makes the gyro's rate plausible (nearest TYPICAL_GYRO_RATE_HZ) and how to
+    fix it (`fix(unit)`; default: convert to seconds or import with --time-unit).
+    `t_gyro` is in seconds as read, i.e. raw stamps times the factor of `read_as`.
+    """
+    if len(t_gyro) < 2:
+        return
+    step_s = float(np.median(np.diff(t_gyro)))
+    if MIN_PLAUSIBLE_STEP_S <= step_s <= MAX_PLAUSIBLE_STEP_S:
+        return
+    raise InputError(time_unit_message(step_s, read_as, fix))
+
+
+def time_unit_message(step_s: float, read_as: str = "s", fix: Callable[[str], str] | None = None) -> str:
+    """The message for a median gyro step of `step_s` seconds (stamps read in `read_as`) that no gyro has."""
+    raw_step = step_s / TIME_UNITS_S[read_as][1]
+    shown = "'seconds'" if read_as == "s" else f"'{read_as}'"
+    plausible = {u: raw_step * f for u, (_, f) in TIME_UNITS_S.items()
+                 if u != read_as and MIN_PLAUSIBLE_STEP_S <= raw_step * f <= MAX_PLAUSIBLE_STEP_S}
+    if not plausible:
+        return (f"the time column cannot be right: the gyro's median step is {raw_step:.4g} {shown} "
+                f"({1 / step_s:.4g} Hz if {read_as}), and no unit of {', '.join(TIME_UNITS_S)} gives a "
+                f"gyro rate between 1 Hz and 100 kHz; check the time column (t in seconds)")
+    unit = min(plausible, key=lambda u: abs(np.log(1.0 / plausible[u] / TYPICAL_GYRO_RATE_HZ)))
+    how = fix(unit) if fix else (f"convert it to seconds, or import with `magyro import csv --time-unit {unit}`"
+                                 if unit != "s" else "import with `magyro import csv --time-unit s`")
+    return (f"the time column looks like {TIME_UNITS_S[unit][0]} (median step {raw_step:.4g} {shown} = "
+            f"{1.0 / plausible[unit]:.4g} Hz if {unit}); {how}")
 
 
 def _gyro_unit(argument: str | None, metadata: dict) -> str:

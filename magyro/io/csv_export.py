@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from magyro.errors import InputError, one_line
-from magyro.io.checks import canonical_gyro_unit, check_file_exists, session_from_table
+from magyro.io.checks import canonical_gyro_unit, check_file_exists, check_time_unit, session_from_table
 from magyro.io.columns import (ACC_COLUMNS, GYRO_COLUMNS, MAG_COLUMNS, OPTIONAL_GROUPS, QUAT_COLUMNS,
                                REQUIRED_COLUMNS, SPEC_NAMES, TIME_COLUMN)
 from magyro.session import Session
@@ -37,8 +37,6 @@ MAG_UNITS = {"ut": "uT", "µt": "uT", "μt": "uT", "microtesla": "uT", "nt": "nT
              "counts": "counts", "count": "counts", "lsb": "counts", "raw": "counts", "adc": "counts",
              "a.u.": "a.u.", "au": "a.u.", "arb": "a.u.", "unitless": "unitless", "1": "unitless",
              "unknown": "unknown"}
-MIN_PLAUSIBLE_STEP_S = 1e-5   # 100 kHz
-MAX_PLAUSIBLE_STEP_S = 1.0    # 1 Hz
 
 # common header spellings (lower case, non-alphanumerics and unit suffixes removed)
 _AXIS_PREFIXES = {
@@ -333,16 +331,12 @@ def _merge_rows(path: Path, table: pd.DataFrame) -> pd.DataFrame:
 
 
 def _check_time_unit(path: Path, table: pd.DataFrame, time_unit: str) -> None:
-    """The gyro's median sample interval must be between 10 us and 1 s."""
+    """The gyro's median sample interval must be between 10 us and 1 s; else name the unit that fits."""
     g = table[list(GYRO_COLUMNS)].notna().all(axis=1).to_numpy()
-    t_g = table[TIME_COLUMN].to_numpy()[g]
-    if len(t_g) < 2:
-        return
-    step_s = float(np.median(np.diff(t_g)))
-    if MIN_PLAUSIBLE_STEP_S <= step_s <= MAX_PLAUSIBLE_STEP_S:
-        return
-    better = [u for u, f in (("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9))
-              if MIN_PLAUSIBLE_STEP_S <= step_s / TIME_UNITS[_canonical_key(time_unit)] * f <= MAX_PLAUSIBLE_STEP_S]
-    raise InputError(f"{path}: with time unit {time_unit!r} the gyro samples are {step_s:.3g} s apart "
-                     f"({1 / step_s:.3g} Hz), which cannot be right; "
-                     f"{'pass time unit ' + ' or '.join(better) if better else 'check the time column'}")
+    factor = _unit_factor(path, time_unit, TIME_UNITS, "time")
+    read_as = {1.0: "s", 1e-3: "ms", 1e-6: "us", 1e-9: "ns"}[factor]
+    try:
+        check_time_unit(table[TIME_COLUMN].to_numpy()[g], read_as,
+                        fix=lambda unit: f"import with --time-unit {unit} (Python: time_unit='{unit}')")
+    except InputError as exc:
+        raise InputError(f"{path}: with time unit {time_unit!r}, {exc}") from None
