@@ -11,6 +11,36 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 
+HOLE_FACTOR = 5.0   # a step longer than this many typical sample intervals is a hole in the record
+
+
+def hole_steps(t_s: np.ndarray) -> np.ndarray:
+    """(N-1,) flags: the steps between consecutive samples that are holes in the record.
+
+    A hole (a logger that stopped, samples cut out as saturated) has no data:
+    nothing is integrated across it, and the attitude after it is a new segment.
+    """
+    dt = np.diff(np.asarray(t_s, dtype=float))
+    if len(dt) == 0:
+        return np.zeros(0, dtype=bool)
+    return dt > HOLE_FACTOR * float(np.median(dt))
+
+
+def hole_spans_s(t_s: np.ndarray) -> list[tuple[float, float]]:
+    """(last sample before, first sample after) of every hole."""
+    k = np.flatnonzero(hole_steps(t_s))
+    return [(float(t_s[i]), float(t_s[i + 1])) for i in k]
+
+
+def overlaps_a_hole(t0_s, t1_s, holes_s: list[tuple[float, float]]) -> np.ndarray:
+    """Flags: does [t0, t1] (arrays of equal shape) overlap one of the holes (a, b), open at both ends?"""
+    t0_s, t1_s = np.asarray(t0_s, dtype=float), np.asarray(t1_s, dtype=float)
+    out = np.zeros(t0_s.shape, dtype=bool)
+    for a, b in holes_s:
+        out |= (t0_s < b) & (t1_s > a)
+    return out
+
+
 @dataclass(frozen=True)
 class Session:
     """One recording. Arrays are float64; times in seconds, strictly increasing."""

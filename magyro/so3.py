@@ -193,3 +193,13 @@ def tangent_basis(m: np.ndarray) -> np.ndarray:
     b1 = np.cross(m, a)
     b1 /= np.linalg.norm(b1)
     return np.column_stack([b1, np.cross(m, b1)])
+
+
+def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The smallest rotation R with R a/|a| = b/|b| (about a x b; a half turn about an axis normal to a if opposite)."""
+    a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
+    axis = np.cross(a, b)
+    s, c = np.linalg.norm(axis), float(np.clip(a @ b, -1.0, 1.0))
+    if s < 1e-12:
+        return np.eye(3) if c > 0 else exp_so3(np.pi * tangent_basis(a)[:, 0])
+    return exp_so3(axis / s * np.arctan2(s, c))

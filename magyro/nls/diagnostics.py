@@ -75,11 +75,12 @@ def field_magnitude_change(session: Session, R: np.ndarray, h: np.ndarray) -> Fi
     """
     norm = np.linalg.norm(ellipsoid.calibrated_field(R, h, session.mag), axis=1)
     window = np.floor((session.t_mag_s - session.t_mag_s[0]) / FIELD_WINDOW_S).astype(int)
-    mean = np.bincount(window, weights=norm) / np.maximum(np.bincount(window), 1)
-    dev = np.abs(mean - 1.0)
+    count = np.bincount(window)
+    mean = np.bincount(window, weights=norm) / np.maximum(count, 1)
+    dev = np.where(count > 0, np.abs(mean - 1.0), 0.0)   # a window inside a hole has nothing to judge
     worst = int(np.argmax(dev))
     return FieldChange(float(dev[worst]), float(session.t_mag_s[0] + (worst + 0.5) * FIELD_WINDOW_S),
-                       float(np.median(dev)))
+                       float(np.median(dev[count > 0])))
 
 
 def rest_check(found: rests.Rests | None, K_g: np.ndarray, bias_rad_s: np.ndarray) -> RestCheck | None:

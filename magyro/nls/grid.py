@@ -3,13 +3,18 @@
 Nodes sit on every `stride`-th segment boundary; segments run from one
 magnetometer sample to the next, and a gap in the magnetometer record is cut,
 at gyro times, into segments of typical length that carry no magnetometer
-residual, so that a gap compiles no new kernel shape.
+residual, so that a gap compiles no new kernel shape. An interval that overlaps a
+hole in the gyro record (no gyro data) is not integrated across: inside the hole the
+rate is taken as unknown (zero, and the link loose: `gyro_linked`), so the attitude after
+it starts a new segment.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+
+from magyro.session import hole_spans_s, overlaps_a_hole
 
 @dataclass(frozen=True)
 class Grid:
@@ -30,6 +35,7 @@ class Grid:
     gyro_b: np.ndarray           # (N-1, stride, L, 3) raw gyro at each sub-step end
     last_mag_index: int          # magnetometer sample at the last node
     mag_weight: np.ndarray       # (N-1, stride) 1 where a segment starts at a sample, 0 in a gap
+    gyro_linked: np.ndarray      # (N-1,) False where the interval overlaps a hole in the gyro record
 
     @property
     def nodes(self) -> int:
@@ -62,7 +68,9 @@ class Grid:
         """(N-1) * stride flags, in residual order: True for segments with a magnetometer sample."""
         return self.mag_weight.reshape(-1) > 0
 
+
 MAX_SEGMENT_FACTOR = 1.5  # segments longer than this many typical magnetometer intervals are cut
+
 
 def segment_starts(t_mag_s: np.ndarray, used: np.ndarray, t_gyro_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(times, magnetometer index, on-a-sample flag) of every segment boundary.
@@ -110,10 +118,14 @@ def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
     ya = np.zeros((n_int, stride, L, 3))
     yb = np.zeros((n_int, stride, L, 3))
     dt[interval, segment, pos] = np.diff(t_all)
-    ya[interval, segment, pos] = y_all[:-1]
-    yb[interval, segment, pos] = y_all[1:]
+    holes = hole_spans_s(t_gyro_s)
+    measured = ~overlaps_a_hole(t_all[:-1], t_all[1:], holes)[:, None]   # no rate is known inside a hole
+    ya[interval, segment, pos] = y_all[:-1] * measured
+    yb[interval, segment, pos] = y_all[1:] * measured
     weight = on_sample[: n_int * stride].reshape(n_int, stride).astype(float)
-    return Grid(t_seg[::stride], seg_idx[:-1].reshape(n_int, stride), dt, ya, yb, int(seg_idx[-1]), weight)
+    t_node = t_seg[::stride]
+    linked = ~overlaps_a_hole(t_node[:-1], t_node[1:], holes)
+    return Grid(t_node, seg_idx[:-1].reshape(n_int, stride), dt, ya, yb, int(seg_idx[-1]), weight, linked)
 
 def gyro_at_mag_midpoints(grid: Grid, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s: float) -> np.ndarray:
     """Raw gyro at each used magnetometer stamp minus tau0/2: (N-1, stride, 3)."""

@@ -47,6 +47,7 @@ from magyro.nls.kernels import compile_kernel, load_cached_kernel
 N_GLOBAL = 23          # calibration corrections without the time offset; 24 with it
 GLOBAL_SLICES = {"U": slice(0, 6), "dh": slice(6, 9), "dK": slice(9, 18), "deps": slice(18, 21), "dm": slice(21, 23), "dtau": slice(23, 24)}
 TIME_OFFSET_SCALE_S = 0.01
+HOLE_LINK_STD_RAD = 0.1   # across a hole in the gyro record the attitudes are linked this loosely (a gauge only)
 UPPER_INDEX = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
 GLOBAL_LAYOUT = [("S0", 9), ("h0", 3), ("K0", 9), ("eps0", 3), ("m0", 3), ("B", 6), ("field_scale", 1), ("Winv", 9), ("w_mag", 1), ("tau0", 1)]
 
@@ -303,7 +304,7 @@ class JointProblem:
         cols = {
             "Cbar": C[:-1].transpose(0, 2, 1).reshape(n_int, 9),  # column-major vec of each C
             "qD": so3.dcm_to_quat(D),
-            "w_int": (1.0 / np.sqrt(g_.interval_s))[:, None],
+            "w_int": np.where(g_.gyro_linked, 1.0 / np.sqrt(g_.interval_s), sigma_gyro_density / HOLE_LINK_STD_RAD)[:, None],
             "ymag": np.asarray(y_mag)[g_.mag_index].reshape(n_int, 3 * s),
             "wseg": g_.mag_weight.reshape(n_int, s),
             "ymid": gyro_at_mag_midpoints(g_, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s).reshape(n_int, 3 * s),

@@ -23,7 +23,7 @@ from magyro.nls.method import NLS
 from magyro.options import Options
 from magyro.nls.problem import N_GLOBAL, TIME_OFFSET_SCALE_S, JointProblem, Linearisation
 from magyro.result.reported import qr_split
-from magyro.session import Session
+from magyro.session import HOLE_FACTOR, Session, hole_steps
 
 NODE_RATE_HZ = 25.0   # nodes per second: strides 1, 2 and 4 at 100 Hz give the same estimates and std to 1e-6
 MAX_PASSES = 3
@@ -33,14 +33,64 @@ TIME_OFFSET_RELOOK_S2 = 1e-5      # re-solve when tau * (tau - tau0) exceeds thi
 CHI2_3DOF_MEDIAN = 2.3660         # median of |r|^2 for a 3-vector of unit normals
 
 
-def nominal_attitudes(session: Session, K0, eps0, t_node_s) -> np.ndarray:
-    """C_m^i at the nodes from the gyro corrected by K0, eps0; node 0 = I."""
+def stretch_bounds(t_s: np.ndarray) -> list[tuple[int, int]]:
+    """[a, b) sample ranges of the hole-free stretches of a record."""
+    cuts = np.flatnonzero(hole_steps(t_s)) + 1
+    edges = np.concatenate([[0], cuts, [len(t_s)]])
+    return list(zip(edges[:-1], edges[1:]))
+
+
+def nominal_attitudes(session: Session, K0, eps0, t_node_s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(C_m^i at the nodes, stretch of each node, node inside a hole): the gyro corrected by K0, eps0,
+    integrated over each hole-free stretch of the gyro record on its own (never across a hole); each
+    stretch starts at I. A node inside a hole takes the attitude of the last gyro sample before it.
+    """
     t, y = session.t_gyro_s, session.gyro_rad_s
     w = y @ K0.T + eps0
-    C = so3.integrate_body_rates(t, w)
+    C = np.empty((len(t), 3, 3))
+    stretch = np.empty(len(t), dtype=int)
+    for k, (a, b) in enumerate(stretch_bounds(t)):
+        C[a:b] = so3.integrate_body_rates(t[a:b], w[a:b])
+        stretch[a:b] = k
     i = np.clip(np.searchsorted(t, t_node_s, side="right") - 1, 0, len(t) - 1)
-    Cn = C[i] @ so3.exp_so3(w[i] * (t_node_s - t[i])[:, None])
-    return np.einsum("ji,njk->nik", Cn[0], Cn)
+    ahead = t_node_s - t[i]
+    in_hole = ahead > HOLE_FACTOR * np.median(np.diff(t))
+    ahead = np.where(in_hole, 0.0, ahead)   # no extrapolation into a hole
+    return C[i] @ so3.exp_so3(w[i] * ahead[:, None]), stretch[i], in_hole
+
+
+def aligned_stretches(C_nodes: np.ndarray, stretch: np.ndarray, in_hole: np.ndarray, field_m_nodes: np.ndarray,
+                      on_sample: np.ndarray, t_node_s: np.ndarray):
+    """(C_m^i at the nodes with node 0 = I, m^i): the stretches after the first joined to it.
+
+    Across a hole the gyro says nothing, so each later stretch is turned by the
+    smallest rotation that makes its first measured field direction agree with
+    m^i (found on the first stretch); its rotation about m^i stays the
+    previous stretch's, a gauge the calibration does not depend on. The nodes
+    inside a hole turn evenly from the attitude before it to the one after.
+    """
+    C = np.einsum("ji,njk->nik", C_nodes[0], C_nodes)
+    first = stretch == stretch[0]
+    m_i = initial_field(C[first & on_sample], field_m_nodes[first & on_sample])
+    for k in np.unique(stretch[~first]):
+        nodes = np.flatnonzero(stretch == k)
+        start = nodes[on_sample[nodes]][0] if on_sample[nodes].any() else nodes[0]
+        guess = C[nodes[0] - 1]               # as if nothing turned across the hole
+        relative = np.einsum("ji,njk->nik", C_nodes[start], C_nodes[nodes])   # the stretch from its start node
+        measured = field_m_nodes[start] / np.linalg.norm(field_m_nodes[start])
+        turn = so3.rotation_between(guess.T @ m_i, measured)
+        C[nodes] = (guess @ turn.T) @ relative
+    for a, b in runs(in_hole):
+        before, after = C[max(a - 1, 0)], C[min(b + 1, len(C) - 1)]
+        share = (t_node_s[a : b + 1] - t_node_s[max(a - 1, 0)]) / (t_node_s[min(b + 1, len(C) - 1)] - t_node_s[max(a - 1, 0)])
+        C[a : b + 1] = before @ so3.exp_so3(share[:, None] * so3.log_so3(before.T @ after))
+    return C, m_i
+
+
+def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) index of every run of True."""
+    edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
 
 
 def initial_field(C_nodes, field_m_nodes, seconds_n: int = 100) -> np.ndarray:
@@ -62,9 +112,9 @@ def linearise(prep: Prepared, grid: Grid, options: Options, search_lag: bool = T
     else:
         lin0 = linear_gyro_estimate(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, prep.field_m, time_offset_s=options.time_offset_s)
     qr_split(lin0.K)  # a mirrored gyro shows already in the linear estimate: say so before solving
-    C = nominal_attitudes(s, lin0.K, lin0.eps, grid.t_node_s)
-    on_sample = grid.node_on_sample
-    m0 = initial_field(C[on_sample], prep.field_m[grid.node_mag_index[on_sample]])
+    C_nodes, stretch, in_hole = nominal_attitudes(s, lin0.K, lin0.eps, grid.t_node_s)
+    C, m0 = aligned_stretches(C_nodes, stretch, in_hole, prep.field_m[grid.node_mag_index], grid.node_on_sample,
+                              grid.t_node_s)
     S0 = np.linalg.inv(prep.fit.R)
     return Linearisation(S0, prep.fit.h, lin0.K, lin0.eps, m0, C, float(np.mean(np.diag(S0))), lin0.time_offset_s)
 

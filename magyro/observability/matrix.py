@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from magyro.session import hole_spans_s, hole_steps, overlaps_a_hole
 from magyro.so3 import skew
 
 PARAMETER_NAMES = (
@@ -31,8 +32,8 @@ def m_matrices(gyro: np.ndarray, field_m: np.ndarray) -> np.ndarray:
 
 
 def trapezoid_weights(t_s: np.ndarray) -> np.ndarray:
-    """Weights w_k with sum_k w_k f(t_k) the trapezoid integral of f over [t_0, t_N-1]."""
-    dt = np.diff(t_s)
+    """Weights w_k with sum_k w_k f(t_k) the trapezoid integral of f over [t_0, t_N-1], holes left out."""
+    dt = np.where(hole_steps(t_s), 0.0, np.diff(t_s))
     w = np.zeros_like(t_s)
     w[:-1] += 0.5 * dt
     w[1:] += 0.5 * dt
@@ -59,7 +60,7 @@ def cumulative_information(t_gyro_s, gyro_rad_s, t_mag_s, field_m, t_checkpoints
     t = t_gyro_s[inside]
     M = m_matrices(gyro_rad_s[inside], f)
     MtM = np.einsum("kia,kib->kab", M, M)
-    dt = np.diff(t)[:, None, None]
+    dt = np.where(hole_steps(t), 0.0, np.diff(t))[:, None, None]
     cum = np.concatenate([np.zeros((1, 12, 12)), np.cumsum(0.5 * (MtM[1:] + MtM[:-1]) * dt, axis=0)])
     idx = np.clip(np.searchsorted(t, t_checkpoints_s, side="right") - 1, 0, len(t) - 1)
     return cum[idx]
@@ -68,8 +69,9 @@ def cumulative_information(t_gyro_s, gyro_rad_s, t_mag_s, field_m, t_checkpoints
 def windowed_increments(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s: float):
     """Rows of eq. (13): field change over each window and the integral of M over it.
 
-    Windows run between magnetometer samples about `window_s` apart. Returns
-    (dm (W, 3), int_M (W, 3, 12)).
+    Windows run between magnetometer samples about `window_s` apart; a window
+    that overlaps a hole in either record is left out (nothing is known of the
+    motion there). Returns (dm (W, 3), int_M (W, 3, 12)).
     """
     inside, f = field_on_gyro_times(t_gyro_s, t_mag_s, field_m)
     t = t_gyro_s[inside]
@@ -80,4 +82,6 @@ def windowed_increments(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s: float)
     ends = ends[(t_mag_s[ends] >= t[0]) & (t_mag_s[ends] <= t[-1])]
     cum_at = np.stack([np.stack([np.interp(t_mag_s[ends], t, cum[:, i, j]) for j in range(12)], -1) for i in range(3)], 1)
     dm = np.diff(field_m[ends], axis=0)
-    return dm, np.diff(cum_at, axis=0)
+    t_end = t_mag_s[ends]
+    whole = ~overlaps_a_hole(t_end[:-1], t_end[1:], hole_spans_s(t) + hole_spans_s(t_mag_s))
+    return dm[whole], np.diff(cum_at, axis=0)[whole]
