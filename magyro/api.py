@@ -45,9 +45,30 @@ def calibrate(session: Session, options: Options | None = None, method=None) -> 
     if options.split_check and method.name != "nls":
         raise InputError("--split-check needs --method nls (it compares two least-squares solves)")
     cal = method.calibrate(session, replace(options, split_check=False))
+    check_the_result_explains_the_data(cal, session, options, method)
     if options.split_check:
         add_split_check(cal, session, options, method)
     return cal
+
+
+MAX_TURNING_MISFIT = 1.5   # converged solves of either method stay within 1.12 (front.initial.turning_misfit_ratio)
+
+
+def check_the_result_explains_the_data(cal: Calibration, session: Session, options: Options, method) -> None:
+    """SolverError (exit 1) when the calibrated gyro predicts the field's turning far worse than the plain linear
+    fit does: then the method lost its way, whatever it reports about itself."""
+    from magyro.errors import SolverError
+    from magyro.front.initial import turning_misfit_ratio
+    from magyro.front.prepare import moving_session
+
+    moving = moving_session(session, options)[0]
+    ratio = turning_misfit_ratio(moving, cal.K, cal.eps_rad_s, cal.R, cal.h, cal.time_offset_s)
+    cal.solver.details["turning_misfit_ratio"] = ratio
+    if ratio > MAX_TURNING_MISFIT:
+        raise SolverError(
+            f"the {method.name} result does not explain the recording: its calibrated gyro predicts the field's "
+            f"turning {ratio:.1f}x worse than the plain linear fit (eq. 13) does, so it is not reported"
+            + ("; the least squares (--method nls) is the more robust method" if method.name != "nls" else ""))
 
 
 def add_split_check(cal: Calibration, session: Session, options: Options, method) -> None:

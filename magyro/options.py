@@ -11,6 +11,22 @@ from dataclasses import dataclass
 
 
 @dataclass(frozen=True)
+class StdBounds:
+    """The largest one-sigma, predicted before the solve, at which a calibration is still worth having.
+
+    A motion that excites every parameter, but too weakly, is refused with the
+    numbers (exit 3) instead of failing later or reporting a meaningless result;
+    the defaults are the size of the errors a low-cost MEMS gyro is calibrated
+    for (scale factors off by a few percent, biases of a few deg/s).
+    """
+
+    scale_ppm: float = 20000.0          # K_g diagonal
+    nonorthogonality_deg: float = 1.0   # K_g above the diagonal, as angles
+    bias_deg_s: float = 0.5
+    misalignment_deg: float = 2.0
+
+
+@dataclass(frozen=True)
 class Options:
     """Physics settings; None means 'estimate from the data'."""
 
@@ -21,6 +37,7 @@ class Options:
     estimate_time_offset: bool = True       # the magnetometer's lag behind the gyro, estimated (NLS) ...
     time_offset_s: float = 0.0              # ... from this start, or fixed at it (the EKF shifts the stamps by it)
     split_check: bool = False               # also calibrate each half alone and compare (magyro.result.consistency)
+    max_std: StdBounds = StdBounds()        # the predicted accuracy the gate asks for (force: solve anyway)
 
     @classmethod
     def in_user_units(cls, gyro_noise_deg_s_sqrt_hz: float | None = None, mag_noise_std: float | None = None,

@@ -31,6 +31,8 @@ from magyro.ekf.prior import PRIOR_INFLATION, Initial, initial_estimate
 from magyro.ekf.streaming import StreamingCalibrator, run_filter
 from magyro.ekf.uncertainty import reported_covariance
 from magyro.errors import InputError
+from magyro.nls.information import predicted_std
+from magyro.observability.gate import accuracy_gate, unexcited_directions
 from magyro.front.prepare import Prepared, prepare
 from magyro.options import Options
 from magyro.result.calibration import Calibration
@@ -78,6 +80,7 @@ class EKF:
         options = options or Options()
         t_start = time.perf_counter()
         prep = prepare(session, options)
+        gate_warnings = accuracy_gate(predicted_std(prep, options), options)   # the same gate as the NLS's
         s = prep.session
         tau = float(options.time_offset_s or 0.0)
         if tau:
@@ -86,7 +89,7 @@ class EKF:
             ref = known_magnetometer(*self.magnetometer)
         else:
             ref = refine_magnetometer(s.mag, prep.fit.R, prep.fit.h, prep.sigma_mag if self.mag_bias_correction else None)
-        init = initial_estimate(s, ref, self.prior_inflation)
+        init = initial_estimate(s, ref, self.prior_inflation, unexcited_directions(prep.analysis))
         stride = max(1, int(math.ceil(len(s.t_mag_s) / max(self.history_rows - 2, 1))))
         cov_Rh = ref.covariance if (self.consider_magnetometer and self.magnetometer is None) else None
         filt = StreamingCalibrator(ref.R, ref.h, init.K0, init.eps0, None, prep.gyro_density, prep.sigma_mag,
@@ -98,6 +101,7 @@ class EKF:
             raise InputError("the EKF got no magnetometer sample inside the gyro's time span")
         history = filt.history()
         cal = assemble(filt, prep, init, filter_s, time.perf_counter() - t_start, tau)
+        cal.warnings.extend(gate_warnings)
         return cal, history
 
 

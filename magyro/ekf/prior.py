@@ -27,15 +27,17 @@ class Initial:
     ls_std: np.ndarray = field(default_factory=lambda: np.zeros(12))
 
 
-def initial_estimate(session: Session, refinement: MagnetometerRefinement, inflation: float = PRIOR_INFLATION) -> Initial:
+def initial_estimate(session: Session, refinement: MagnetometerRefinement, inflation: float = PRIOR_INFLATION,
+                     unexcited: np.ndarray | None = None) -> Initial:
     """Eq. (13) on the step-1 calibrated field, with its least-squares covariance inflated as the filter's prior.
 
     The least squares ignores the noise in its regressors and reuses the data
     the filter will see, so its covariance is too small to be a prior: it is
     multiplied by `inflation` (in std) and floored at PRIOR_FLOOR_K / PRIOR_FLOOR_EPS.
+    `unexcited`: the directions a forced, rank-deficient motion leaves out (see `linear_gyro_estimate`).
     """
     field_m = ellipsoid.calibrated_field(refinement.R, refinement.h, session.mag)
-    lin = linear_gyro_estimate(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field_m)
+    lin = linear_gyro_estimate(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field_m, unexcited=unexcited)
     dm, int_M = windowed_increments(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field_m, DEFAULT_WINDOW_S)
     A, b = int_M.reshape(-1, 12), dm.reshape(-1)
     theta = np.concatenate([lin.K.reshape(-1, order="F"), lin.eps])

@@ -14,15 +14,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from magyro.errors import InputError, ObservabilityError
+from magyro import so3
+from magyro.errors import InputError, MagyroError, ObservabilityError
 from magyro.front import ellipsoid, rests
 from magyro.front.noise import NoiseLevels, noise_levels
 from magyro.observability.gate import ObservabilityAnalysis, analyse
 from magyro.options import Options
-from magyro.session import Session
+from magyro.session import Session, hole_steps
 
 MIN_MOVING_SAMPLES = 100
-MAG_MUST_FOLLOW_DEG = 180.0
+MAG_MUST_FOLLOW_DEG = 45.0     # turned this far from its start, the device moves the field far beyond the noise
+SMALL_TURN_DEG = 60.0          # a degenerate cloud within this turn is too little motion, whatever its shape
+SPAN_RATE_HZ = 100.0           # the attitude span is integrated at about this rate
 MIN_RATE_RATIO = 0.1
 
 
@@ -40,9 +43,47 @@ class Prepared:
     noise_source: str = ""
 
 
-def gyro_angle_turned_deg(session: Session) -> float:
-    """Total angle the raw gyro says the device turned (integral of |w| dt)."""
-    return float(np.rad2deg(np.sum(np.linalg.norm(session.gyro_rad_s[1:], axis=1) * np.diff(session.t_gyro_s))))
+def attitude_span_deg(session: Session, bias_rad_s: np.ndarray | None = None) -> float:
+    """How far the raw gyro (less a rest bias, when known) says the device ever turned from its first attitude.
+
+    Unlike the path integral of |w| dt, shaking back and forth does not add up.
+    Holes in the record start again from the attitude before them.
+    """
+    step = max(1, int(session.gyro_rate_hz // SPAN_RATE_HZ))
+    t, w = session.t_gyro_s[::step], session.gyro_rad_s[::step]
+    if bias_rad_s is not None:
+        w = w - bias_rad_s
+    w = np.where(np.append(hole_steps(t), False)[:, None], 0.0, w)   # nothing turns across a hole
+    C = so3.integrate_body_rates(t, w)
+    return float(np.rad2deg(np.max(np.linalg.norm(so3.log_so3(C), axis=1))))
+
+
+def degenerate_cloud_error(session: Session, cloud: ellipsoid.DegenerateCloud, found: rests.Rests,
+                           gyro_std: float, mag_sample: float) -> MagyroError:
+    """What a magnetometer cloud that fits no ellipsoid means, judged against how far the gyro says the device turned.
+
+    Readings that stay within their noise while the device turned far are no
+    magnetometer (exit 2); a cloud of any shape from a device that barely turned
+    is too little motion (exit 3), whatever its shape suggests.
+    """
+    span_deg = attitude_span_deg(session, found.gyro_mean_rad_s)
+    if cloud.kind == "static" and span_deg > MAG_MUST_FOLLOW_DEG:
+        return InputError(
+            f"the gyro says the device turned {span_deg:.0f} deg from its first attitude but the magnetometer readings "
+            "do not follow: they vary no more than their own noise; check that mx, my, mz are a magnetometer and "
+            "are not noise or constant"
+        )
+    field = ellipsoid.surrogate_field_directions(session.mag)
+    analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std,
+                       mag_sample / np.mean(np.linalg.norm(session.mag, axis=1)))
+    gyro_note = "" if analysis.full_rank else f" Gyro parameters: {analysis.summary()}."
+    if cloud.kind != "sparse" and span_deg < SMALL_TURN_DEG:
+        return ObservabilityError(
+            f"the device turned too little: at most {span_deg:.0f} deg from its first attitude (gyro), so the field "
+            "directions cover a small patch of the sphere; the magnetometer's soft/hard iron cannot be fitted. "
+            "Turn the device through large angles (90 deg or more) about all three of its axes, so that the field "
+            f"sweeps much of the sphere.{gyro_note}", analysis)
+    return ObservabilityError(f"{cloud}; the magnetometer's soft/hard iron cannot be fitted.{gyro_note}", analysis)
 
 
 UNIT_CHECK_BLOCK_S = 0.1       # the field's turning, too slow side: steps between means over 0.1 s blocks
@@ -127,18 +168,7 @@ def prepare(session: Session, options: Options) -> Prepared:
     try:
         fit = ellipsoid.fit_ellipsoid(session.mag, mag_sample)
     except ellipsoid.DegenerateCloud as cloud:
-        turned_deg = gyro_angle_turned_deg(session)
-        if cloud.kind == "static" and turned_deg > MAG_MUST_FOLLOW_DEG:
-            raise InputError(
-                f"the gyro turned {turned_deg:.0f} deg but the magnetometer readings do not follow: they vary no "
-                "more than their own noise; check that mx, my, mz are a magnetometer and are not noise or constant"
-            ) from None
-        field = ellipsoid.surrogate_field_directions(session.mag)
-        analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, mag_sample / np.mean(np.linalg.norm(session.mag, axis=1)))
-        raise ObservabilityError(
-            f"{cloud}; the magnetometer's soft/hard iron cannot be fitted. Gyro parameters: {analysis.summary()}",
-            analysis,
-        ) from None
+        raise degenerate_cloud_error(session, cloud, found, gyro_std, mag_sample) from None
     field = ellipsoid.calibrated_field(fit.R, fit.h, session.mag)
     check_gyro_unit(session, field)
     analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, mag_sample * float(np.mean(np.diag(fit.R))))

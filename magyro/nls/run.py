@@ -2,8 +2,10 @@
 
     1. the shared front end (`magyro.front.prepare`): rests, noise, ellipsoid, unit check, gate
     2. linearisation, grid and problem; IPOPT with warm re-solves (`magyro.nls.solve`)
-    3. the Gauss-Newton decrement check: a solve that could still improve is refused
-    4. the marginal information, std and warnings assembled into the result (`magyro.nls.diagnostics`)
+    3. the accuracy gate: the information of the problem at its start says what the solve can reach;
+       too little is refused (exit 3) before any iteration
+    4. the Gauss-Newton decrement check: a solve that could still improve is refused
+    5. the marginal information, std and warnings assembled into the result (`magyro.nls.diagnostics`)
 """
 from __future__ import annotations
 
@@ -11,12 +13,14 @@ import time
 
 import numpy as np
 
-from magyro.errors import SolverError
-from magyro.front.prepare import prepare
+from magyro.errors import ObservabilityError, SolverError
+from magyro.front.prepare import Prepared, prepare
 from magyro.nls.diagnostics import assemble
-from magyro.nls.information import gauss_newton_decrement, reduce_hessian
+from magyro.nls.information import gauss_newton_decrement, information_std, reduce_hessian
 from magyro.nls.method import NLS
-from magyro.nls.solve import build_problem, solve_passes
+from magyro.nls.problem import JointProblem, Linearisation
+from magyro.nls.solve import build_problem, problem_parameters, solve_passes
+from magyro.observability.gate import accuracy_gate
 from magyro.options import Options
 from magyro.result.calibration import Calibration
 from magyro.session import Session
@@ -30,13 +34,29 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     t_start = time.perf_counter()
     prep = prepare(session, options)
     grid, lin, problem = build_problem(prep, options, method)
+    gate_warnings = predicted_accuracy_gate(problem, prep, lin, options)
     sol = solve_passes(problem, prep, lin, method)
     reduced = reduce_hessian(problem.hessian_function(sol.x, sol.p), problem.n_theta)
     decrement = gauss_newton_decrement(reduced, np.array(problem.gradient_function(sol.x, sol.p)).ravel())
+    if not (np.isfinite(decrement) and decrement < MAX_DECREMENT) and not prep.analysis.full_rank:
+        raise ObservabilityError(   # forced past the gate, and the data indeed do not pin a solution down
+            f"--force cannot help the least squares here: the motion excites only {prep.analysis.rank} of the 12 gyro "
+            f"parameters and the solve finds no unique solution ({sol.stats['return_status']}); --method ekf --force "
+            f"gives an estimate whose std shows what is missing. {prep.analysis.summary()}", prep.analysis)
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
         raise SolverError(
             f"the solver did not converge: {sol.stats['return_status']} after {sol.stats['iter_count']} iterations "
             f"(a further Gauss-Newton step would still reduce chi^2 by {decrement:.3g})"
         )
     sol.stats["gauss_newton_decrement"] = decrement
-    return assemble(problem, prep, grid, sol, reduced, method, time.perf_counter() - t_start)
+    cal = assemble(problem, prep, grid, sol, reduced, method, time.perf_counter() - t_start)
+    cal.warnings.extend(gate_warnings)
+    return cal
+
+
+def predicted_accuracy_gate(problem: JointProblem, prep: Prepared, lin: Linearisation, options: Options) -> list[str]:
+    """The accuracy the solve can reach, from its own problem at the start: refused below `options.max_std`
+    (exit 3), and with --force refused only when no unique solution exists; the warnings of a forced solve."""
+    p0 = problem_parameters(problem, prep, lin, prep.sigma_mag, lin.time_offset_s)
+    predicted = information_std(problem, lin, p0)
+    return accuracy_gate(predicted, options)

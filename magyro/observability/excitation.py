@@ -33,12 +33,12 @@ from magyro.front.prepare import Prepared, moving_session, prepare
 from magyro.nls.information import predicted_std
 from magyro.nls.method import NLS
 from magyro.observability.advice import weak_directions
-from magyro.observability.gate import (WELL_CONDITIONED, ObservabilityAnalysis, cumulative_noise_matrix,
+from magyro.observability.gate import (WELL_CONDITIONED, accuracy_shortfalls, accuracy_summary, ObservabilityAnalysis, cumulative_noise_matrix,
                                        directional_rank)
 from magyro.observability.matrix import cumulative_information, trapezoid_weights
 from magyro.observability.report import (SPHERE_BANDS, SPHERE_SECTORS, Coverage, ObservabilityReport, Targets,
                                          Timeline, accuracy_rows, fmt)
-from magyro.options import Options
+from magyro.options import Options, StdBounds
 from magyro.result.parts import Std
 from magyro.session import Session
 
@@ -69,8 +69,7 @@ def observe(session: Session, options: Options | None = None, targets: Targets |
         mag_std_unit_field = levels.mag_sample_std * float(np.mean(np.diag(prep.fit.R)))
     except ObservabilityError as err:  # the ellipsoid cannot be fitted (static, planar, sparse cloud)
         analysis = err.report
-        cloud = err.__context__ if isinstance(err.__context__, ellipsoid.DegenerateCloud) else None
-        problem = str(cloud) if cloud is not None else str(err).split(";")[0]
+        problem = str(err).split(";")[0]
         field_m = ellipsoid.surrogate_field_directions(s.mag)
         mag_std_unit_field = levels.mag_sample_std / float(np.mean(np.linalg.norm(s.mag, axis=1)))
 
@@ -82,7 +81,7 @@ def observe(session: Session, options: Options | None = None, targets: Targets |
     cov = coverage(s.t_gyro_s, rates, field_m, reference)
 
     std, prediction = predict(prep, analysis, options, method)
-    verdict, reason = judge(analysis, problem, std, targets)
+    verdict, reason = judge(analysis, problem, std, targets, options.max_std)
     weak, advice = weak_directions(analysis, verdict=verdict)
     if problem is not None and not any("all three" in a for a in advice):
         advice = ["Turn the device through large angles about all three of its axes, so that the field sweeps "
@@ -153,9 +152,11 @@ def first_time(t_s: np.ndarray, reached: np.ndarray) -> float | None:
 def bias_free_rates(session: Session, prep: Prepared | None, analysis: ObservabilityAnalysis):
     """Gyro rates (rad/s, per gyro axis) with the bias taken out, and how.
 
-    Full rank: corrected by the linear initial estimate (paper eq. 13), w_b = K_g0 y + eps_b0.
-    Otherwise the per-axis median reading is taken as the bias (right for still axes,
-    which is what matters when axes are missing).
+    Full rank: corrected by the linear initial estimate (paper eq. 13), w_b = K_g0 y + eps_b0,
+    when that estimate is a plausible gyro (scale factors within 0.5-2, axes within 30 deg of
+    orthogonal); a weakly excited motion can give one that turns 970 deg where the raw gyro
+    says 89. Otherwise the per-axis median reading is taken as the bias (right for still
+    axes, which is what matters when axes are missing).
     """
     y = session.gyro_rad_s
     if prep is not None and analysis.full_rank:
@@ -168,8 +169,15 @@ def bias_free_rates(session: Session, prep: Prepared | None, analysis: Observabi
         except InputError:
             pass
         else:
-            return y @ Kg.T + C.T @ lin.eps, "corrected by the initial estimate of K_g and bias"
+            if plausible_gyro(Kg):
+                return y @ Kg.T + C.T @ lin.eps, "corrected by the initial estimate of K_g and bias"
     return y - np.median(y, axis=0), "readings minus their median (taken as the bias)"
+
+
+def plausible_gyro(K_g: np.ndarray) -> bool:
+    """Scale factors within 0.5-2 and axes within 30 deg of orthogonal: any MEMS gyro, however poorly made."""
+    scale = np.diag(K_g)
+    return bool(np.all((scale > 0.5) & (scale < 2.0)) and np.all(np.abs(np.triu(K_g, 1)) < 0.5 * scale[None, :]))
 
 
 def sphere_cell(directions: np.ndarray, bands: int = SPHERE_BANDS, sectors: int = SPHERE_SECTORS) -> np.ndarray:
@@ -219,8 +227,8 @@ def predict(prep: Prepared | None, analysis: ObservabilityAnalysis, options: Opt
 
 
 def judge(analysis: ObservabilityAnalysis, ellipsoid_problem: str | None, std: Std | None,
-          targets: Targets) -> tuple[str, str]:
-    """The verdict and its reason in plain words."""
+          targets: Targets, bounds: StdBounds = StdBounds()) -> tuple[str, str]:
+    """The verdict and its reason in plain words: insufficient exactly when the solve would refuse the session."""
     if ellipsoid_problem is not None:
         return "insufficient", (f"{ellipsoid_problem}, so the magnetometer's soft/hard iron cannot be fitted; "
                                 f"the motion excites {analysis.rank} of the 12 gyro parameters")
@@ -229,6 +237,10 @@ def judge(analysis: ObservabilityAnalysis, ellipsoid_problem: str | None, std: S
                                 f"(rank of the integral of M^T M above the noise floor)")
     if std is None:
         return "marginal", "all 12 gyro parameters are excited, but their accuracy could not be predicted"
+    shortfalls = accuracy_shortfalls(std, bounds)
+    if shortfalls:
+        return "insufficient", ("all 12 gyro parameters are excited, but too weakly for a calibration worth having "
+                                f"(the solve refuses it): {accuracy_summary(shortfalls)}")
     above, worst = [], []
     for label, values, unit, target in accuracy_rows(std, targets):
         v = float(np.max(values)) if np.all(np.isfinite(values)) else math.inf

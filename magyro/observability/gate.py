@@ -177,3 +177,66 @@ def axes_in_subspace(basis: np.ndarray) -> str:
     if len(inside) == basis.shape[1]:
         return " and ".join(f"{a} axis" for a in inside)
     return " and ".join("axis [" + ", ".join(f"{c:+.2f}" for c in basis[:, k]) + "]" for k in range(basis.shape[1]))
+
+
+# --------------------------------------------------------------------------- the predicted accuracy
+
+AXIS_NAMES = "xyz"
+
+
+def accuracy_shortfalls(std, bounds) -> list[tuple[str, float, float, str]]:
+    """(parameter, predicted one-sigma, bound, motion to add) for every gyro parameter the motion pins down
+    less well than `bounds` (a `magyro.options.StdBounds`) asks; `std` is a `magyro.result.parts.Std`."""
+    out = []
+    for i in range(3):
+        ppm = 1e6 * float(std.K_g[i, i])
+        if not ppm <= bounds.scale_ppm:
+            out.append((f"scale K_g[{i},{i}] (ppm)", ppm, bounds.scale_ppm,
+                        f"turn the device more, and faster, about its {AXIS_NAMES[i]} axis"))
+        for j in range(i + 1, 3):
+            deg = float(np.rad2deg(std.K_g[i, j]))
+            if not deg <= bounds.nonorthogonality_deg:
+                out.append((f"non-orthogonality K_g[{i},{j}] (deg)", deg, bounds.nonorthogonality_deg,
+                            f"turn the device more about its {AXIS_NAMES[j]} axis"))
+    for k in range(3):
+        bias = float(std.bias_deg_s[k])
+        if not bias <= bounds.bias_deg_s:
+            out.append((f"bias {AXIS_NAMES[k]} (deg/s)", bias, bounds.bias_deg_s,
+                        "record longer, turning about every axis in both directions"))
+        mis = float(std.misalignment_deg[k])
+        if not mis <= bounds.misalignment_deg:
+            out.append((f"misalignment about {AXIS_NAMES[k]} (deg)", mis, bounds.misalignment_deg,
+                        "turn the device through large angles about all three of its axes"))
+    return out
+
+
+def accuracy_summary(shortfalls: list[tuple[str, float, float, str]]) -> str:
+    """The shortfalls in one sentence, worst first, with the motion to add."""
+    worst = sorted(shortfalls, key=lambda s: -s[1] / s[2])
+    parts = [f"{name} {value:.3g} (bound {bound:.3g})" for name, value, bound, _ in worst[:4]]
+    advice = list(dict.fromkeys(a for *_, a in worst))
+    more = f" and {len(worst) - 4} more" if len(worst) > 4 else ""
+    return f"predicted one-sigma {', '.join(parts)}{more}; {'; '.join(advice[:2])}"
+
+
+def accuracy_gate(std, options) -> list[str]:
+    """Refuse (ObservabilityError, exit 3) a motion that excites every parameter too weakly for `options.max_std`;
+    with `options.force`, the shortfall comes back as a warning instead."""
+    shortfalls = accuracy_shortfalls(std, options.max_std)
+    if not shortfalls:
+        return []
+    summary = accuracy_summary(shortfalls)
+    if not options.force:
+        from magyro.errors import ObservabilityError
+
+        raise ObservabilityError(
+            f"the motion excites every gyro parameter, but too weakly for a calibration worth having: {summary} "
+            "(--force solves anyway; the bounds are Options.max_std, --max-std-* on the command line)")
+    return [f"solved with --force although the motion is too weak: {summary}"]
+
+
+def unexcited_directions(analysis: ObservabilityAnalysis) -> np.ndarray | None:
+    """The 12 x (12 - rank) directions of [vec K; eps] below the noise floor, or None at full rank."""
+    if analysis.full_rank:
+        return None
+    return analysis.eigenvectors[:, : 12 - analysis.rank]

@@ -65,8 +65,9 @@ def plot_report(report: ObservabilityReport, path) -> None:
 
     # eigenvalue growth of the cumulative integral, and each eigenvalue against its noise floor
     tl = report.timeline
-    lam = np.where(tl.eigenvalues > 0, tl.eigenvalues, np.nan)
-    snr = np.where(tl.signal_to_noise > 0, tl.signal_to_noise, np.nan)
+    lam = plottable_on_log_axis(tl.eigenvalues)
+    snr = tl.signal_to_noise
+    snr = np.where(np.isfinite(snr) & (snr > 0), np.clip(snr, *SNR_SHOWN), np.nan)   # the first instants' floor is ~0
     for k in range(12):
         ax_eig.plot(tl.t_s, lam[:, k], lw=1, color=_palette(k))
         ax_snr.plot(tl.t_s, snr[:, k], lw=1, color=_palette(k))
@@ -114,3 +115,18 @@ def _palette(k: int):
     import matplotlib
 
     return matplotlib.colormaps["viridis"](k / 11.0)
+
+
+SNR_SHOWN = (1e-3, 1e9)   # beyond either end a direction is plainly unexcited or plainly excited
+LOG_AXIS_DECADES = 16   # what a double resolves below the largest value; smaller is a numerical zero
+
+
+def plottable_on_log_axis(values: np.ndarray) -> np.ndarray:
+    """The values with the ones a log axis cannot show (zero, negative, infinite, or numerically zero against the
+    largest) as NaN: an unexcited direction's eigenvalue of 1e-300 asked for 300 decades and overflowed."""
+    v = np.asarray(values, dtype=float)
+    finite = np.isfinite(v) & (v > 0)
+    if not finite.any():
+        return np.full(v.shape, np.nan)
+    floor = np.max(v[finite]) * 10.0 ** -LOG_AXIS_DECADES
+    return np.where(finite & (v > floor), v, np.nan)
