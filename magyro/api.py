@@ -44,11 +44,25 @@ def calibrate(session: Session, options: Options | None = None, method=None) -> 
     method = method or method_named("nls")
     if options.split_check and method.name != "nls":
         raise InputError("--split-check needs --method nls (it compares two least-squares solves)")
+    session, recording = checked_recording(session, options)
     cal = method.calibrate(session, replace(options, split_check=False))
+    cal.recording = recording
+    cal.warnings[:0] = [f"recording: {f.message}; {f.fix}" for f in recording.warnings if not f.repaired]
     check_the_result_explains_the_data(cal, session, options, method)
     if options.split_check:
         add_split_check(cal, session, options, method)
     return cal
+
+
+def checked_recording(session: Session, options: Options):
+    """(the session repaired as `options.repairs` allows, the recording check): InputError (exit 2) when the
+    check finds the recording unusable as it is (stamps that are not seconds, too few samples, ...)."""
+    from magyro.front.repairs import repair_recording
+
+    repaired, recording = repair_recording(session, options.repairs)
+    if recording.errors:
+        raise InputError(recording.error_message())
+    return repaired, recording
 
 
 MAX_TURNING_MISFIT = 1.5   # converged solves of either method stay within 1.12 (front.initial.turning_misfit_ratio)
@@ -88,7 +102,9 @@ def observe(session: Session, options: Options | None = None, targets=None, meth
     """The excitation report of `magyro observe`: rank, weak directions, coverage, predicted accuracy; no solve."""
     from magyro.observability import observe as excitation_report
 
-    return excitation_report(session, options, targets, method=method)
+    options = options or Options()
+    session, recording = checked_recording(session, options)
+    return replace(excitation_report(session, options, targets, method=method), recording=recording)
 
 
 def solve_file(path, options: Options | None = None, method: str = "nls", method_knobs: dict | None = None, *,

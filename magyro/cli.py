@@ -18,6 +18,7 @@ import typer
 
 from magyro import __version__
 from magyro.errors import MagyroError
+from magyro.options import Repairs, StdBounds
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, help="Gyroscope calibration via the magnetometer (Wu & Pei).")
 
@@ -68,6 +69,11 @@ def solve(
     time_offset: bool = typer.Option(True, "--time-offset/--no-time-offset", help="Estimate the magnetometer's lag behind the gyro (default) or fix it to 0."),
     keep_rests: bool = typer.Option(False, "--keep-rests", help="Keep the rests at both ends in the solve (default: trimmed, as the paper does)."),
     split_check: bool = typer.Option(False, "--split-check", help="Also calibrate each half of the recording alone and warn when they disagree beyond their std (about 2x the time)."),
+    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help="Turn a repair of the recording off: restamp, held, saturation, spikes, or all (repeat for several)."),
+    max_std_scale_ppm: float = typer.Option(StdBounds.scale_ppm, "--max-std-scale-ppm", min=0.0, help="Refuse (exit 3) when the predicted one-sigma of a gyro scale factor exceeds this, ppm."),
+    max_std_nonorth_deg: float = typer.Option(StdBounds.nonorthogonality_deg, "--max-std-nonorth-deg", min=0.0, help="... of a non-orthogonality angle, deg."),
+    max_std_bias_deg_s: float = typer.Option(StdBounds.bias_deg_s, "--max-std-bias-deg-s", min=0.0, help="... of a gyro bias, deg/s."),
+    max_std_misalignment_deg: float = typer.Option(StdBounds.misalignment_deg, "--max-std-misalignment-deg", min=0.0, help="... of the misalignment, deg."),
     method: str = typer.Option("nls", "--method", help="nls (the joint least squares) or ekf (the paper's two steps and error-state EKF)."),
     history: Optional[Path] = typer.Option(None, "--history", help="--method ekf: write K, bias, m^i and their 1-sigma over time (Parquet)."),
     history_plot: Optional[Path] = typer.Option(None, "--history-plot", help="--method ekf: plot them like the paper's Fig. 3/6/7 (needs magyro[plot])."),
@@ -81,8 +87,10 @@ def solve(
     from magyro.options import Options
 
     def action():
+        bounds = StdBounds(max_std_scale_ppm, max_std_nonorth_deg, max_std_bias_deg_s, max_std_misalignment_deg)
         options = Options.in_user_units(gyro_noise_deg_s_sqrt_hz, mag_noise, force=force, estimate_time_offset=time_offset,
-                                        trim_rests=not keep_rests, split_check=split_check)
+                                        trim_rests=not keep_rests, split_check=split_check, max_std=bounds,
+                                        repairs=Repairs.without(no_repair or []))
         cal = solve_file(session, options, method, {"stride": stride, "loss": loss}, gyro_unit=gyro_unit,
                          mag_unit=mag_unit, output=output, history=history, history_plot=history_plot)
         if not quiet:
@@ -243,6 +251,11 @@ def observe_command(
     target_nonorth_deg: float = typer.Option(0.1, "--target-nonorth-deg", min=0.0, help="One-sigma target of the gyro non-orthogonality (K_g off-diagonal), deg."),
     target_bias_deg_s: float = typer.Option(0.01, "--target-bias-deg-s", min=0.0, help="One-sigma target of the gyro bias, deg/s."),
     target_misalignment_deg: float = typer.Option(0.1, "--target-misalignment-deg", min=0.0, help="One-sigma target of the gyro-magnetometer misalignment, deg."),
+    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help="Turn a repair of the recording off: restamp, held, saturation, spikes, or all (repeat for several)."),
+    max_std_scale_ppm: float = typer.Option(StdBounds.scale_ppm, "--max-std-scale-ppm", min=0.0, help="Refuse (exit 3) when the predicted one-sigma of a gyro scale factor exceeds this, ppm."),
+    max_std_nonorth_deg: float = typer.Option(StdBounds.nonorthogonality_deg, "--max-std-nonorth-deg", min=0.0, help="... of a non-orthogonality angle, deg."),
+    max_std_bias_deg_s: float = typer.Option(StdBounds.bias_deg_s, "--max-std-bias-deg-s", min=0.0, help="... of a gyro bias, deg/s."),
+    max_std_misalignment_deg: float = typer.Option(StdBounds.misalignment_deg, "--max-std-misalignment-deg", min=0.0, help="... of the misalignment, deg."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
 ):
     """Does the recording excite every parameter, and how well? The excitation report, no solve.
@@ -254,7 +267,9 @@ def observe_command(
     from magyro.options import Options
 
     def action():
-        options = Options.in_user_units(gyro_noise_deg_s_sqrt_hz, mag_noise)
+        bounds = StdBounds(max_std_scale_ppm, max_std_nonorth_deg, max_std_bias_deg_s, max_std_misalignment_deg)
+        options = Options.in_user_units(gyro_noise_deg_s_sqrt_hz, mag_noise, max_std=bounds,
+                                        repairs=Repairs.without(no_repair or []))
         targets = (target_scale_ppm, target_nonorth_deg, target_bias_deg_s, target_misalignment_deg)
         report = observe_file(session, options, targets, gyro_unit=gyro_unit, mag_unit=mag_unit, output=output, plot=plot)
         if not quiet:
@@ -275,6 +290,7 @@ def check_command(
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the check as JSON here (schema magyro.recording/1)."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
+    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help="Turn a repair of the recording off: restamp, held, saturation, spikes, or all (repeat for several)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
 ):
     """Is the recording sound? Rates, jitter, bursts, gaps, held samples, clock drift, saturation, spikes, units;
@@ -287,7 +303,8 @@ def check_command(
     from magyro.errors import InputError
 
     def action():
-        check = check_file(session, gyro_unit=gyro_unit, mag_unit=mag_unit, output=output)
+        check = check_file(session, gyro_unit=gyro_unit, mag_unit=mag_unit, output=output,
+                           repairs=Repairs.without(no_repair or []))
         if not quiet:
             typer.echo(check.table())
             if output is not None:

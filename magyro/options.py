@@ -27,6 +27,36 @@ class StdBounds:
 
 
 @dataclass(frozen=True)
+class Repairs:
+    """Which repairs of the recording `magyro.front.repairs.repair_recording` makes before any method (all by
+    default; each is reported in the calibration's `recording` section)."""
+
+    restamp_bursts: bool = True
+    drop_held: bool = True
+    cut_saturation: bool = True
+    drop_spikes: bool = True
+
+    @classmethod
+    def none(cls) -> "Repairs":
+        return cls(False, False, False, False)
+
+    NAMES = {"restamp": "restamp_bursts", "held": "drop_held", "saturation": "cut_saturation", "spikes": "drop_spikes"}
+
+    @classmethod
+    def without(cls, names) -> "Repairs":
+        """All repairs but the ones named (restamp, held, saturation, spikes; all turns every one off)."""
+        names = [n.strip() for item in names for n in item.split(",") if n.strip()]
+        unknown = [n for n in names if n not in cls.NAMES and n != "all"]
+        if unknown:
+            from magyro.errors import InputError
+
+            raise InputError(f"unknown repair {unknown[0]!r}; use {', '.join(cls.NAMES)} or all")
+        if "all" in names:
+            return cls.none()
+        return cls(**{field: name not in names for name, field in cls.NAMES.items()})
+
+
+@dataclass(frozen=True)
 class Options:
     """Physics settings; None means 'estimate from the data'."""
 
@@ -38,6 +68,7 @@ class Options:
     time_offset_s: float = 0.0              # ... from this start, or fixed at it (the EKF shifts the stamps by it)
     split_check: bool = False               # also calibrate each half alone and compare (magyro.result.consistency)
     max_std: StdBounds = StdBounds()        # the predicted accuracy the gate asks for (force: solve anyway)
+    repairs: Repairs = Repairs()            # what the recording check may repair (restamps, held, saturation, spikes)
 
     @classmethod
     def in_user_units(cls, gyro_noise_deg_s_sqrt_hz: float | None = None, mag_noise_std: float | None = None,

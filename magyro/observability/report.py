@@ -94,6 +94,7 @@ class ObservabilityReport:
     analysed_span_s: list          # [start, end] the gate analyses (the rests at both ends trimmed)
     rests_s: list                  # rests found, [[start, end], ...]
     mag_unit: str
+    recording: object = None       # the recording check (magyro.front.findings.RecordingCheck), via magyro.observe
     # for the figure only (not in the JSON)
     t_mag_s: np.ndarray = field(repr=False, default=None)
     field_directions: np.ndarray = field(repr=False, default=None)   # (Nm, 3) unit
@@ -159,6 +160,7 @@ class ObservabilityReport:
                         "magnetometer_unit": self.mag_unit},
             "timeline": {"t_s": _arr(tl.t_s), "rank": [int(r) for r in tl.rank], "condition": _arr(tl.condition),
                          "eigenvalues": _arr(tl.eigenvalues), "signal_to_noise": _arr(tl.signal_to_noise)},
+            **({"recording": self.recording.to_dict()} if self.recording is not None else {}),
         }
 
     def to_json(self) -> str:
@@ -170,6 +172,7 @@ class ObservabilityReport:
         out = [f"magyro observe: {self.source or 'session'} ({self.duration_s:.1f} s, gyro {self.gyro_rate_hz:.0f} Hz, "
                f"magnetometer {self.mag_rate_hz:.0f} Hz)",
                f"verdict: {self.verdict.upper()}: {self.reason}",
+               *([self.recording.summary()] if self.recording is not None else []),
                "",
                f"observability (integral of M^T M, paper eq. 10-11): rank {a.rank} of 12, condition {fmt(a.condition)}"]
         out.append("  eigenvalues / largest: " + " ".join(f"{v:.2g}" for v in a.eigenvalues_normalised))

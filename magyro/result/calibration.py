@@ -9,6 +9,7 @@ import numpy as np
 
 from magyro import so3
 from magyro.errors import InputError
+from magyro.front.findings import RecordingCheck
 from magyro.result.consistency import SplitCheck
 from magyro.result.fit import FilterFit, LeastSquaresFit, fit_from_dict
 from magyro.result.parts import (Excitation, NoiseReport, RestCheck, SolverReport, Std, as_list, read_array,
@@ -53,6 +54,7 @@ class Calibration:
     rests: RestCheck | None = None
     warnings: list = field(default_factory=list)
     consistency: SplitCheck | None = None     # the split-half check, when asked for
+    recording: RecordingCheck | None = None   # the recording check and what it repaired (magyro.calibrate)
 
     @property
     def bias_deg_s(self) -> np.ndarray:
@@ -118,6 +120,7 @@ class Calibration:
             "noise": None if self.noise is None else self.noise.to_dict(),
             "fit": None if self.fit is None else self.fit.to_dict(),
             **({"consistency": self.consistency.to_dict()} if self.consistency is not None else {}),
+            **({"recording": self.recording.to_dict()} if self.recording is not None else {}),
         }
 
     def to_json(self, path=None) -> str:
@@ -157,6 +160,8 @@ class Calibration:
             c = self.consistency
             lines.append(f"split-half check: the halves differ by {c.rms_z:.1f} sigma RMS, at most {c.max_abs_z:.1f} "
                          f"({c.worst}); above {c.max_rms_z:.0f} RMS or {c.max_half_z:.0f} is a warning")
+        if self.recording is not None:
+            lines.append(self.recording.summary())
         ob = self.observability
         lines.append(f"observability: rank {ob.rank} of 12, condition {ob.condition:.3g}")
         sv = self.solver
@@ -232,4 +237,5 @@ def calibration_from_dict(data: dict) -> Calibration:
         time_offset_estimated=bool(data.get("time_offset_estimated", False)),
         rests=None if rests is None else RestCheck.from_dict(rests), warnings=list(data.get("warnings", [])),
         consistency=None if consistency is None else SplitCheck.from_dict(consistency),
+        recording=None if data.get("recording") is None else RecordingCheck.from_dict(data["recording"]),
     )

@@ -1,0 +1,119 @@
+"""The repairs of the recording check where the fix is known, each on by default and each with its switch.
+
+    session, check = repair_recording(session, Repairs())            # all four
+    session, check = repair_recording(session, Repairs(drop_held=False))
+
+- `restamp_bursts`  a sensor whose stamps come in bursts (buffered data stamped on arrival)
+                    gets t_k = a + b k from its sample index, stretch by stretch between gaps;
+                    a regular clock with dropped samples is never restamped (holes stay holes);
+- `drop_held`       rows repeating the previous row are dropped, the first of each run kept
+                    (only on a sensor the check found holding values);
+- `cut_saturation`  gyro rows on a saturation plateau are removed; the spans they leave are
+                    gyro holes, whatever their length (the true rate there is unknown);
+- `drop_spikes`     magnetometer spikes are removed.
+
+The input session and its arrays are never modified. The returned check has
+`repaired=True` on what was fixed, a `gyro_holes` finding and `gyro_holes_s`: the
+spans without gyro data (over GAP_PERIODS periods, or cut for saturation) that an
+integration must not cross.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from magyro.front.findings import GAP_PERIODS, Finding, RecordingCheck
+from magyro.front.recording import inspect
+from magyro.options import Repairs
+from magyro.session import HOLE_FACTOR, Session
+
+
+def repair_recording(session: Session, repairs: Repairs | None = None) -> tuple[Session, RecordingCheck]:
+    """(the repaired session, the check of the recording as given, with `repaired` set on what was fixed)."""
+    repairs = repairs or Repairs()
+    check, evidence = inspect(session)
+    fixed = set()
+    times = {"gyro": session.t_gyro_s, "magnetometer": session.t_mag_s}
+    values = {"gyro": session.gyro_rad_s, "magnetometer": session.mag}
+    keep = {sensor: np.ones(len(t), dtype=bool) for sensor, t in times.items()}
+    if repairs.restamp_bursts:
+        for sensor, t in evidence.restamped.items():
+            if np.all(np.diff(t) > 0):
+                times[sensor] = t
+                fixed.add(("bursts", sensor))
+    if repairs.drop_spikes and evidence.spikes.any():
+        keep["magnetometer"] &= ~evidence.spikes
+        fixed.add(("spikes", "magnetometer"))
+    if repairs.cut_saturation and evidence.saturated.any():
+        evidence.saturated = widened_to_holes(evidence.saturated)
+        keep["gyro"] &= ~evidence.saturated
+        fixed.add(("saturation", "gyro"))
+    if repairs.drop_held:
+        for sensor in ("gyro", "magnetometer"):
+            if check.find("held", sensor):
+                keep[sensor] &= ~held_after(values[sensor], keep[sensor])
+                fixed.add(("held", sensor))
+    t_g, t_m = times["gyro"][keep["gyro"]], times["magnetometer"][keep["magnetometer"]]
+    repaired = replace(session, t_gyro_s=t_g.copy(), gyro_rad_s=values["gyro"][keep["gyro"]].copy(),
+                       t_mag_s=t_m.copy(), mag=values["magnetometer"][keep["magnetometer"]].copy())
+    cut = evidence.saturated if ("saturation", "gyro") in fixed else np.zeros(len(keep["gyro"]), dtype=bool)
+    holes = gyro_holes(times["gyro"], keep["gyro"], cut)
+    findings = [replace(f, repaired=True) if (f.kind, f.sensor) in fixed else f for f in check.findings]
+    if holes:
+        findings.append(holes_finding(holes))
+    return repaired, replace(check, findings=tuple(findings), gyro_holes_s=tuple(holes),
+                             repairs={name: bool(on) for name, on in repairs.__dict__.items()})
+
+
+def widened_to_holes(cut: np.ndarray) -> np.ndarray:
+    """The cut widened so that each run of it leaves a hole (`magyro.session.HOLE_FACTOR` periods or more) that
+    every integration sees and never crosses: a plateau of 2 samples cut alone would be bridged by
+    interpolating rates the gyro could not measure."""
+    need = int(np.ceil(HOLE_FACTOR)) + 1
+    edges = np.diff(np.concatenate([[0], cut.astype(np.int8), [0]]))
+    wide = cut.copy()
+    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+        short = need - (b - a)
+        if short > 0:
+            wide[max(a - short // 2, 0): min(b + short - short // 2, len(cut))] = True
+    return wide
+
+
+def held_after(x: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """Rows (of all of x) that repeat the previous kept row exactly; only kept rows are marked."""
+    kept = np.flatnonzero(keep)
+    repeat = np.zeros(len(x), dtype=bool)
+    repeat[kept[1:]] = np.all(x[kept[1:]] == x[kept[:-1]], axis=1)
+    return repeat
+
+
+def gyro_holes(t: np.ndarray, keep: np.ndarray, cut: np.ndarray) -> list:
+    """Spans with no gyro data that an integration must not cross: intervals of the kept samples over
+    GAP_PERIODS typical periods, and every span left by samples cut for saturation; merged, in order."""
+    kept = np.flatnonzero(keep)
+    if len(kept) < 2:
+        return []
+    tk = t[kept]
+    dt = np.diff(tk)
+    median = float(np.median(dt))
+    ordinary = dt[dt <= 3 * median]
+    period = float(ordinary.mean()) if len(ordinary) else median
+    crosses_cut = np.zeros(len(dt), dtype=bool)
+    if cut.any():
+        n_cut = np.concatenate([[0], np.cumsum(cut)])
+        crosses_cut = n_cut[kept[1:]] - n_cut[kept[:-1] + 1] > 0   # a cut sample between two kept ones
+    i = np.flatnonzero((dt > GAP_PERIODS * period) | crosses_cut)
+    return [(float(tk[j]), float(tk[j + 1])) for j in i]
+
+
+def holes_finding(holes: list) -> Finding:
+    total = sum(b - a for a, b in holes)
+    longest = max(b - a for a, b in holes)
+    return Finding(
+        "gyro_holes", "gyro", f"after repair the gyro has {len(holes)} hole(s), {total:.3f} s in all (longest "
+        f"{longest:.3f} s): spans with no gyro data over {GAP_PERIODS:g} periods, or cut for saturation",
+        tuple(holes), "info",
+        "the attitude cannot be carried across a hole by the gyro; each hole starts a new attitude segment "
+        "that the magnetometer alone ties to the rest", "nothing: the solve never integrates across them",
+        numbers={"count": len(holes), "seconds": total, "longest_s": longest})
