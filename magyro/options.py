@@ -35,12 +35,14 @@ class Repairs:
     drop_held: bool = True
     cut_saturation: bool = True
     drop_spikes: bool = True
+    align_clocks: bool = True       # take a drifting lag, or one beyond the solve's search, off the magnetometer's stamps
 
     @classmethod
     def none(cls) -> "Repairs":
-        return cls(False, False, False, False)
+        return cls(False, False, False, False, False)
 
-    NAMES = {"restamp": "restamp_bursts", "held": "drop_held", "saturation": "cut_saturation", "spikes": "drop_spikes"}
+    NAMES = {"restamp": "restamp_bursts", "held": "drop_held", "saturation": "cut_saturation", "spikes": "drop_spikes",
+             "clocks": "align_clocks"}
 
     @classmethod
     def without(cls, names) -> "Repairs":

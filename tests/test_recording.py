@@ -332,7 +332,8 @@ def test_the_report_is_plain_json_with_its_schema(b02):
     data = json.loads(check.to_json())
     assert data["schema"] == SCHEMA == "magyro.recording/1" and data["usable"] is True
     assert set(data["sensors"]) == {"gyro", "magnetometer"}
-    assert data["repairs"] == {"restamp_bursts": True, "drop_held": True, "cut_saturation": True, "drop_spikes": True}
+    assert data["repairs"] == {"restamp_bursts": True, "drop_held": True, "cut_saturation": True, "drop_spikes": True,
+                               "align_clocks": True}
     assert {f["kind"] for f in data["findings"]} == {"gaps", "saturation", "held", "gyro_holes"}
     for f in data["findings"]:
         assert set(f) == {"kind", "sensor", "severity", "message", "where_s", "matters", "fix", "repaired", "numbers"}

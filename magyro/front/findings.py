@@ -68,6 +68,7 @@ class RecordingCheck:
     lag_s: tuple = ()             # magnetometer lag behind the gyro at the start and at the end, when measured
     repairs: dict = field(default_factory=dict)  # repair name -> on/off, after repair_recording
     source: str = ""
+    lag_at_s: tuple = ()          # the times lag_s is measured at
 
     @property
     def errors(self) -> list:
@@ -93,7 +94,8 @@ class RecordingCheck:
                 "sensors": {k: v.to_dict() for k, v in self.sensors.items()},
                 "findings": [f.to_dict() for f in self.findings],
                 "gyro_holes_s": [[float(a), float(b)] for a, b in self.gyro_holes_s],
-                "lag_s": [float(x) for x in self.lag_s], "repairs": dict(self.repairs)}
+                "lag_s": [float(x) for x in self.lag_s], "lag_at_s": [float(x) for x in self.lag_at_s],
+                "repairs": dict(self.repairs)}
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=2)
@@ -107,7 +109,7 @@ class RecordingCheck:
         findings = tuple(Finding(**{**f, "where_s": spans(f.get("where_s", ()))}) for f in data.get("findings", ()))
         sensors = {k: SensorStats(**v) for k, v in data.get("sensors", {}).items()}
         return cls(findings, sensors, spans(data.get("gyro_holes_s", ())), tuple(data.get("lag_s", ())),
-                   dict(data.get("repairs", {})), str(data.get("source", "")))
+                   dict(data.get("repairs", {})), str(data.get("source", "")), tuple(data.get("lag_at_s", ())))
 
     def summary(self) -> str:
         """One line for the calibration table: what was repaired, and what the check warns of."""

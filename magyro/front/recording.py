@@ -97,7 +97,9 @@ def inspect(session: Session) -> tuple[RecordingCheck, Evidence]:
     holes = gaps_of(t_g, stats["gyro"].period_s)
     order = {s: i for i, s in enumerate(reversed(SEVERITIES))}
     findings.sort(key=lambda f: order[f.severity])
-    return RecordingCheck(tuple(findings), stats, tuple(holes), lag, source=session.source), evidence
+    lag_s, lag_at_s = lag if lag else ((), ())
+    return RecordingCheck(tuple(findings), stats, tuple(holes), lag_s, source=session.source,
+                          lag_at_s=lag_at_s), evidence
 
 
 def too_few(session: Session, few: dict) -> RecordingCheck:

@@ -25,6 +25,7 @@ import numpy as np
 
 from magyro.front.findings import GAP_PERIODS, Finding, RecordingCheck
 from magyro.front.recording import inspect
+from magyro.front.signals import SOLVE_LAG_SEARCH_S
 from magyro.options import Repairs
 from magyro.session import HOLE_FACTOR, Session
 
@@ -54,6 +55,14 @@ def repair_recording(session: Session, repairs: Repairs | None = None) -> tuple[
             if check.find("held", sensor):
                 keep[sensor] &= ~held_after(values[sensor], keep[sensor])
                 fixed.add(("held", sensor))
+    stretched = [f.numbers["stretch"] for f in check.find("clock_drift") if "stretch" in f.numbers]
+    if repairs.align_clocks and stretched:   # one clock runs fast over the whole span: shrink it back
+        t_m = times["magnetometer"]
+        times["magnetometer"] = t_m[0] + (t_m - t_m[0]) / (1.0 + stretched[0])
+        fixed.add(("clock_drift", "both"))
+    elif repairs.align_clocks and check.lag_s and (check.find("clock_drift") or check.find("time_offset")):
+        times["magnetometer"] = aligned_magnetometer_times(times["magnetometer"], check.lag_s, check.lag_at_s)
+        fixed |= {("clock_drift", "both"), ("time_offset", "both")}
     t_g, t_m = times["gyro"][keep["gyro"]], times["magnetometer"][keep["magnetometer"]]
     repaired = replace(session, t_gyro_s=t_g.copy(), gyro_rad_s=values["gyro"][keep["gyro"]].copy(),
                        t_mag_s=t_m.copy(), mag=values["magnetometer"][keep["magnetometer"]].copy())
@@ -64,6 +73,15 @@ def repair_recording(session: Session, repairs: Repairs | None = None) -> tuple[
         findings.append(holes_finding(holes))
     return repaired, replace(check, findings=tuple(findings), gyro_holes_s=tuple(holes),
                              repairs={name: bool(on) for name, on in repairs.__dict__.items()})
+
+
+def aligned_magnetometer_times(t_m: np.ndarray, lag_s: tuple, lag_at_s: tuple) -> np.ndarray:
+    """The magnetometer's stamps less the lag the check measured, as a line through its two measurements; a lag
+    the solve can find itself (within its search) is left for it, with its std."""
+    (l0, l1), (c0, c1) = lag_s, lag_at_s
+    lag = l0 + (l1 - l0) * (t_m - c0) / (c1 - c0)
+    mean = 0.5 * (l0 + l1)
+    return t_m - (lag - (mean if abs(mean) <= SOLVE_LAG_SEARCH_S else 0.0))
 
 
 def widened_to_holes(cut: np.ndarray) -> np.ndarray:

@@ -11,6 +11,7 @@ from magyro.front.findings import Finding
 SAT_MIN_DEG_S = 30.0              # nobody's full scale is below this
 SAT_MIN_SAMPLES = 3
 SAT_MIN_RUNS = 3                  # or one steep entry/exit:
+SAT_LONG_RUN = 5                  # or one plateau this long (no measured rate stays at its extreme so long)
 SAT_STEEP_FRACTION = 0.01         # a step of this share of the range into or out of the plateau
 FULL_SCALES_DEG_S = (125, 250, 245, 500, 1000, 2000, 4000)   # named when within 3 % (250 before ST's 245)
 SPIKE_NOISE = 8.0                 # a spike is off the neighbours' median by SPIKE_SPREAD x
@@ -23,7 +24,8 @@ SOLVE_LAG_SEARCH_S = 0.1          # the solve's time-offset search (README step 
 
 def saturation(t: np.ndarray, gyro: np.ndarray) -> tuple[np.ndarray, list]:
     """(rows with an axis on a saturation plateau, findings): per axis and sign, at least SAT_MIN_SAMPLES
-    samples at exactly the extreme value, in SAT_MIN_RUNS separate runs or entered/left steeply."""
+    samples at exactly the extreme value, in SAT_MIN_RUNS separate runs, entered/left steeply, or held for
+    SAT_LONG_RUN samples in a row."""
     cut = np.zeros(len(t), dtype=bool)
     findings = []
     for axis, name in enumerate("xyz"):
@@ -45,7 +47,8 @@ def saturation(t: np.ndarray, gyro: np.ndarray) -> tuple[np.ndarray, list]:
             steps = np.concatenate([np.abs(x[begin[begin > 0]] - x[begin[begin > 0] - 1]),
                                     np.abs(x[end[end < len(x) - 1] + 1] - x[end[end < len(x) - 1]])])
             steep = bool(len(steps) and steps.max() > SAT_STEEP_FRACTION * extreme)
-            if len(begin) < SAT_MIN_RUNS and not steep:
+            long_run = int(np.max(end - begin + 1)) >= SAT_LONG_RUN   # a smooth motion clipped flat for a while
+            if len(begin) < SAT_MIN_RUNS and not steep and not long_run:
                 continue
             cut |= at
             findings.append(saturation_finding(name, sign, extreme, t, at, begin, end))
@@ -119,7 +122,8 @@ def field_directions(mag: np.ndarray):
 
 
 def field_turning_findings(t_g, gyro, t_m, mag) -> tuple[list, tuple]:
-    """The gyro unit both ways and the magnetometer's lag behind the gyro at the start and the end."""
+    """(findings, ((lag at the start, at the end), (their times)) or ()): the gyro unit both ways, and the
+    magnetometer's lag behind the gyro, drifting or beyond the solve's search."""
     f = field_directions(mag)
     t0, t1 = max(t_g[0], t_m[0]), min(t_g[-1], t_m[-1])
     if f is None or t1 - t0 < 2.0:
@@ -127,9 +131,10 @@ def field_turning_findings(t_g, gyro, t_m, mag) -> tuple[list, tuple]:
     findings = gyro_unit_findings(t_g, gyro, t_m, mag, f)
     if findings:
         return findings, ()
-    lag = lags(t_g, gyro, t_m, f, t0, t1)
-    if lag is None:
+    measured = lags(t_g, gyro, t_m, f, t0, t1)
+    if measured is None:
         return [], ()
+    lag, at = measured
     where = ((t0, t1),)
     numbers = {"lag_start_s": lag[0], "lag_end_s": lag[1]}
     if abs(lag[1] - lag[0]) > DRIFT_MIN_S:
@@ -146,7 +151,7 @@ def field_turning_findings(t_g, gyro, t_m, mag) -> tuple[list, tuple]:
             f"the +/-{SOLVE_LAG_SEARCH_S * 1e3:.0f} ms the solve searches", where, "warning",
             "a lag the solve does not find turns into attitude error at every rotation",
             f"shift the magnetometer's times by {-np.mean(lag):+.3f} s", numbers=numbers))
-    return findings, tuple(lag)
+    return findings, (tuple(lag), tuple(at))
 
 
 def gyro_unit_findings(t_g, gyro, t_m, mag, field) -> list:
@@ -166,8 +171,8 @@ def gyro_unit_findings(t_g, gyro, t_m, mag, field) -> list:
 
 
 def lags(t_g, gyro, t_m, f, t0, t1):
-    """(lag at the start, lag at the end) of the magnetometer behind the gyro, s, or None when the motion is
-    too smooth to tell: the peak of the correlation of the field's turning rate with the gyro's |w x f|
+    """((lag at the start, lag at the end), (the times they are measured at)) of the magnetometer behind the
+    gyro, s, or None when the motion is too smooth to tell: the peak of the correlation of the field's turning rate with the gyro's |w x f|
     (frames taken as aligned) or |w| (frame-free), whichever agrees better, over the first and last 35 %."""
     grid = np.arange(t0, t1, LAG_GRID_S)
     f_grid = np.column_stack([np.interp(grid, t_m, f[:, i]) for i in range(3)])
@@ -194,7 +199,8 @@ def lags(t_g, gyro, t_m, f, t0, t1):
             return None
         y0, y1, y2 = rho[i - 1:i + 2]
         out.append((max_lag - i - 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2)) * LAG_GRID_S)
-    return float(out[0]), float(out[1])
+    centres = (t0 + (windows[0] + part / 2) * LAG_GRID_S, t0 + (windows[1] + part / 2) * LAG_GRID_S)
+    return (float(out[0]), float(out[1])), centres
 
 
 def correlation(seen, w, lo, part, max_lag) -> np.ndarray:

@@ -6,7 +6,8 @@ at gyro times, into segments of typical length that carry no magnetometer
 residual, so that a gap compiles no new kernel shape. An interval that overlaps a
 hole in the gyro record (no gyro data) is not integrated across: inside the hole the
 rate is taken as unknown (zero, and the link loose: `gyro_linked`), so the attitude after
-it starts a new segment.
+it starts a new segment; in such an interval only the sample on its first node
+carries a residual: no gyro says where the device turned between the others.
 """
 from __future__ import annotations
 
@@ -102,6 +103,7 @@ def segment_starts(t_mag_s: np.ndarray, used: np.ndarray, t_gyro_s: np.ndarray) 
 def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
     """Nodes on every `stride`-th segment boundary (magnetometer samples, gaps cut) inside the gyro's span."""
     usable = np.flatnonzero((t_mag_s >= t_gyro_s[0]) & (t_mag_s <= t_gyro_s[-1]))
+    holes = hole_spans_s(t_gyro_s)
     t_bound, idx_bound, on_sample = segment_starts(t_mag_s, usable, t_gyro_s)
     n_int = (len(t_bound) - 1) // stride
     t_seg = t_bound[: n_int * stride + 1]
@@ -118,13 +120,13 @@ def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
     ya = np.zeros((n_int, stride, L, 3))
     yb = np.zeros((n_int, stride, L, 3))
     dt[interval, segment, pos] = np.diff(t_all)
-    holes = hole_spans_s(t_gyro_s)
     measured = ~overlaps_a_hole(t_all[:-1], t_all[1:], holes)[:, None]   # no rate is known inside a hole
     ya[interval, segment, pos] = y_all[:-1] * measured
     yb[interval, segment, pos] = y_all[1:] * measured
     weight = on_sample[: n_int * stride].reshape(n_int, stride).astype(float)
     t_node = t_seg[::stride]
     linked = ~overlaps_a_hole(t_node[:-1], t_node[1:], holes)
+    weight[~linked, 1:] = 0.0   # past a node, an interval over a hole cannot say where the device turned
     return Grid(t_node, seg_idx[:-1].reshape(n_int, stride), dt, ya, yb, int(seg_idx[-1]), weight, linked)
 
 def gyro_at_mag_midpoints(grid: Grid, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s: float) -> np.ndarray:
