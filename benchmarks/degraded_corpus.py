@@ -1,6 +1,6 @@
 """magyro on the degraded corpus: the shipped real trials with each defect of issue 11 applied.
 
-    python benchmarks/degraded_corpus.py [--repair] [--only NAME,...] [--out corpus.json]
+    python benchmarks/degraded_corpus.py [--no-repair] [--only NAME,...] [--out corpus.json]
 
 For each defect of `tests/degrade.py` (`CORPUS`: burst stamps, clipping, a hole, spikes, a held
 magnetometer, time in ms/ns, gyro units both ways, magnetometer clock drift and offset, small
@@ -12,9 +12,8 @@ what the recording check finds (warnings and errors), the first warning or the r
 whether the issue's target is met: exit 0 within 2000 ppm, 0.05 deg/s and 0.1 deg, or the
 right refusal (its exit code).
 
-`--repair` first passes every session, the clean trials too, through
-`magyro.front.repairs.repair_recording` (all repairs on), as the solve will once it is wired in:
-a preview of the targets with the repairs, where the solver's own hole handling applies.
+`magyro.calibrate` repairs what the recording check knows how to (all repairs on, as `magyro solve`
+does); `--no-repair` turns them off, to show what they buy.
 """
 from __future__ import annotations
 
@@ -33,18 +32,16 @@ import degrade  # noqa: E402  (tests/degrade.py)
 from magyro import calibrate, so3  # noqa: E402
 from magyro.errors import MagyroError, one_line  # noqa: E402
 from magyro.front.recording import check_recording  # noqa: E402
-from magyro.front.repairs import repair_recording  # noqa: E402
+from magyro.options import Options, Repairs  # noqa: E402
 
 TARGET_PPM, TARGET_BIAS_DEG_S, TARGET_MISALIGNMENT_DEG = 2000.0, 0.05, 0.1
 
 
 def solve(session, repair: bool) -> dict:
-    """Calibrate (after the repairs when asked): the numbers compared, or the refusal."""
+    """Calibrate (the repairs on or off): the numbers compared, or the refusal."""
     t0 = time.perf_counter()
-    if repair:
-        session = repair_recording(session)[0]
     try:
-        cal = calibrate(session)
+        cal = calibrate(session, Options(repairs=Repairs() if repair else Repairs.none()))
     except MagyroError as exc:
         return {"exit": exc.exit_code, "message": one_line(exc, None), "seconds": time.perf_counter() - t0}
     except Exception as exc:  # a bug: the CLI would say "internal error", exit 1; the issue wants none
@@ -84,7 +81,7 @@ def check_summary(session) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repair", action="store_true", help="repair every session first (repair_recording)")
+    parser.add_argument("--no-repair", dest="repair", action="store_false", help="turn the recording repairs off")
     parser.add_argument("--only", default="", help="comma-separated defect names (substrings) to run")
     parser.add_argument("--out", type=Path, help="write every result as JSON")
     args = parser.parse_args()
@@ -96,7 +93,7 @@ def main() -> None:
     rows, out = [], {"repair": args.repair, "clean": clean, "corpus": []}
     header = (f"{'defect':<30}{'trial':<10}{'exit':>5}{'dK_g ppm':>10}{'dbias deg/s':>12}{'dmis deg':>9}{'s':>6}"
               f"  {'target':<13}{'check finds':<34}first warning / message")
-    print(f"degraded corpus, {'with' if args.repair else 'without'} repair_recording; clean: " + ", ".join(
+    print(f"degraded corpus, {'with' if args.repair else 'without'} the recording repairs; clean: " + ", ".join(
         f"{t} exit {r['exit']} in {r['seconds']:.1f} s" for t, r in clean.items()))
     print(header)
     print("-" * len(header))

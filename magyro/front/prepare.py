@@ -83,7 +83,8 @@ def degenerate_cloud_error(session: Session, cloud: ellipsoid.DegenerateCloud, f
             "directions cover a small patch of the sphere; the magnetometer's soft/hard iron cannot be fitted. "
             "Turn the device through large angles (90 deg or more) about all three of its axes, so that the field "
             f"sweeps much of the sphere.{gyro_note}", analysis)
-    return ObservabilityError(f"{cloud}; the magnetometer's soft/hard iron cannot be fitted.{gyro_note}", analysis)
+    return ObservabilityError(f"{cloud}; the magnetometer's soft/hard iron cannot be fitted. Turn the device through "
+                              f"large angles about all three of its axes.{gyro_note}", analysis)
 
 
 UNIT_CHECK_BLOCK_S = 0.1       # the field's turning, too slow side: steps between means over 0.1 s blocks

@@ -14,7 +14,7 @@ from magyro.nls.grid import Grid
 from magyro.nls.information import Reduced, propagate
 from magyro.nls.method import NLS
 from magyro.nls.problem import N_GLOBAL, JointProblem
-from magyro.nls.solve import Solution, residual_matrix
+from magyro.nls.solve import Solution, residual_matrix, runs_of_true
 from magyro.observability.gate import ObservabilityAnalysis
 from magyro.result.calibration import Calibration
 from magyro.result.fit import FieldChange, LeastSquaresFit, SuspectWindow
@@ -43,12 +43,6 @@ def residual_summary(problem: JointProblem, r: np.ndarray, session: Session, R: 
         suspect_segments=suspect_segments(problem.grid, r),
         field_change=field_magnitude_change(session, R, h),
     )
-
-
-def runs_of_true(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(first, last) index of every run of True."""
-    edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
 
 
 def suspect_segments(grid: Grid, residuals: np.ndarray) -> tuple[SuspectWindow, ...]:

@@ -81,14 +81,14 @@ def aligned_stretches(C_nodes: np.ndarray, stretch: np.ndarray, in_hole: np.ndar
         measured = field_m_nodes[start] / np.linalg.norm(field_m_nodes[start])
         turn = so3.rotation_between(guess.T @ m_i, measured)
         C[nodes] = (guess @ turn.T) @ relative
-    for a, b in runs(in_hole):
+    for a, b in runs_of_true(in_hole):
         before, after = C[max(a - 1, 0)], C[min(b + 1, len(C) - 1)]
         share = (t_node_s[a : b + 1] - t_node_s[max(a - 1, 0)]) / (t_node_s[min(b + 1, len(C) - 1)] - t_node_s[max(a - 1, 0)])
         C[a : b + 1] = before @ so3.exp_so3(share[:, None] * so3.log_so3(before.T @ after))
     return C, m_i
 
 
-def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+def runs_of_true(mask: np.ndarray) -> list[tuple[int, int]]:
     """(first, last) index of every run of True."""
     edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
