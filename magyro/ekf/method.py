@@ -32,7 +32,7 @@ from magyro.ekf.streaming import StreamingCalibrator, run_filter
 from magyro.ekf.uncertainty import reported_covariance
 from magyro.errors import InputError
 from magyro.nls.information import predicted_std
-from magyro.observability.gate import accuracy_gate, unexcited_directions
+from magyro.observability.gate import accuracy_gate, needs_accuracy_check, unexcited_directions
 from magyro.front.prepare import Prepared, prepare
 from magyro.options import Options
 from magyro.result.calibration import Calibration
@@ -80,7 +80,8 @@ class EKF:
         options = options or Options()
         t_start = time.perf_counter()
         prep = prepare(session, options)
-        gate_warnings = accuracy_gate(predicted_std(prep, options), options)   # the same gate as the NLS's
+        gate_warnings = (accuracy_gate(predicted_std(prep, options), options)   # the same gate as the NLS's
+                         if needs_accuracy_check(prep.analysis) else [])
         s = prep.session
         tau = float(options.time_offset_s or 0.0)
         if tau:

@@ -86,19 +86,31 @@ def segment_starts(t_mag_s: np.ndarray, used: np.ndarray, t_gyro_s: np.ndarray) 
     dt = np.diff(t)
     typical = float(np.median(dt)) if len(dt) else 0.0
     long = np.flatnonzero(dt > MAX_SEGMENT_FACTOR * typical) if typical > 0 else np.array([], dtype=int)
-    extra_t, extra_i = [], []
-    for k in long:
-        pieces = int(np.ceil(dt[k] / typical))
-        wanted = t[k] + dt[k] * np.arange(1, pieces) / pieces
-        inside = t_gyro_s[(t_gyro_s > t[k]) & (t_gyro_s < t[k + 1])]
-        snapped = np.unique(inside[np.clip(np.searchsorted(inside, wanted), 0, len(inside) - 1)]) if len(inside) else wanted
-        extra_t.append(snapped)
-        extra_i.append(np.full(len(snapped), used[k]))
-    times = np.concatenate([t] + extra_t)
-    index = np.concatenate([used] + extra_i)
-    on_sample = np.concatenate([np.ones(len(t), dtype=bool)] + [np.zeros(len(e), dtype=bool) for e in extra_t])
+    extra_t, extra_i = bridge_points(t, dt, long, typical, t_gyro_s)
+    times = np.concatenate([t, extra_t])
+    index = np.concatenate([used, used[extra_i]])
+    on_sample = np.concatenate([np.ones(len(t), dtype=bool), np.zeros(len(extra_t), dtype=bool)])
     order = np.argsort(times, kind="stable")
     return times[order], index[order], on_sample[order]
+
+def bridge_points(t: np.ndarray, dt: np.ndarray, long: np.ndarray, typical: float,
+                  t_gyro_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(times, position in t of the sample before) of the boundaries that cut each long gap t[k] -> t[k+1]
+    into pieces about `typical` long: each at the first gyro time at or after its even share of the gap
+    (or the gap's last gyro time), duplicates dropped; where no gyro sample falls in the gap, the even share."""
+    pieces = np.ceil(dt[long] / typical).astype(int) - 1
+    gap = np.repeat(long, pieces)
+    share = (np.arange(len(gap)) - np.repeat(np.cumsum(pieces) - pieces, pieces) + 1) / np.repeat(pieces + 1, pieces)
+    wanted = t[gap] + dt[gap] * share
+    first_after = np.searchsorted(t_gyro_s, t[gap], side="right")           # first gyro time inside the gap
+    last_inside = np.searchsorted(t_gyro_s, t[gap + 1], side="left") - 1
+    at = np.minimum(np.searchsorted(t_gyro_s, wanted, side="left"), last_inside)
+    has_gyro = last_inside >= first_after
+    snapped = np.where(has_gyro, t_gyro_s[np.clip(at, 0, len(t_gyro_s) - 1)], wanted)
+    keep = np.ones(len(gap), dtype=bool)
+    keep[1:] = (snapped[1:] != snapped[:-1]) | (gap[1:] != gap[:-1])
+    return snapped[keep], gap[keep]
+
 
 def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
     """Nodes on every `stride`-th segment boundary (magnetometer samples, gaps cut) inside the gyro's span."""

@@ -20,7 +20,7 @@ from magyro.nls.information import gauss_newton_decrement, information_std, redu
 from magyro.nls.method import NLS
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.solve import build_problem, problem_parameters, solve_passes
-from magyro.observability.gate import accuracy_gate
+from magyro.observability.gate import accuracy_gate, needs_accuracy_check
 from magyro.options import Options
 from magyro.result.calibration import Calibration
 from magyro.session import Session
@@ -57,6 +57,8 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
 def predicted_accuracy_gate(problem: JointProblem, prep: Prepared, lin: Linearisation, options: Options) -> list[str]:
     """The accuracy the solve can reach, from its own problem at the start: refused below `options.max_std`
     (exit 3), and with --force refused only when no unique solution exists; the warnings of a forced solve."""
+    if not needs_accuracy_check(prep.analysis):
+        return []
     p0 = problem_parameters(problem, prep, lin, prep.sigma_mag, lin.time_offset_s)
     predicted = information_std(problem, lin, p0)
     return accuracy_gate(predicted, options)

@@ -100,9 +100,11 @@ def initial_field(C_nodes, field_m_nodes, seconds_n: int = 100) -> np.ndarray:
     return m / np.linalg.norm(m)
 
 
-def default_stride(session: Session) -> int:
-    """Magnetometer samples per attitude node for about NODE_RATE_HZ nodes a second."""
-    return max(1, int(round(session.mag_rate_hz / NODE_RATE_HZ)))
+def default_stride(session: Session, node_rate_hz: float = NODE_RATE_HZ) -> int:
+    """Segments per attitude node for about `node_rate_hz` nodes a second. Segments run between magnetometer
+    samples a typical (median) interval apart, longer intervals cut to that length (`grid.segment_starts`):
+    a magnetometer whose held rows were dropped (BROAD: 3.5 and 10.5 ms) is cut back to 3.5 ms segments."""
+    return max(1, int(round(1.0 / (float(np.median(np.diff(session.t_mag_s))) * node_rate_hz))))
 
 
 def linearise(prep: Prepared, grid: Grid, options: Options, search_lag: bool = True) -> Linearisation:

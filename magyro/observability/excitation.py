@@ -32,6 +32,7 @@ from magyro.front import ellipsoid
 from magyro.front.prepare import Prepared, moving_session, prepare
 from magyro.nls.information import predicted_std
 from magyro.nls.method import NLS
+from magyro.nls.solve import default_stride
 from magyro.observability.advice import weak_directions
 from magyro.observability.gate import (WELL_CONDITIONED, accuracy_shortfalls, accuracy_summary, ObservabilityAnalysis, cumulative_noise_matrix,
                                        directional_rank)
@@ -202,7 +203,7 @@ def coverage(t_gyro_s, rates_rad_s, field_m, rate_reference: str) -> Coverage:
 
 def prediction_stride(session: Session, method: NLS) -> int:
     """The method's node stride, or nodes at `PREDICTION_NODE_RATE_HZ` when it leaves it open."""
-    return int(method.stride or max(1, round(session.mag_rate_hz / PREDICTION_NODE_RATE_HZ)))
+    return int(method.stride or default_stride(session, PREDICTION_NODE_RATE_HZ))
 
 
 def predict(prep: Prepared | None, analysis: ObservabilityAnalysis, options: Options,
