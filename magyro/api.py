@@ -247,3 +247,55 @@ def check_file(path, gyro_unit: str | None = None, mag_unit: str | None = None, 
     if output is not None:
         write_text_atomically(output, check.to_json() + "\n")
     return check
+
+
+def apply_file(calibration_path, session_path, output, frame: str = "b", gyro_unit: str | None = None,
+               mag_unit: str | None = None) -> Session:
+    """`magyro apply`: a session file corrected by a calibration JSON, written as a new session file.
+
+    The written gyro columns are the calibrated rates in rad/s, K_g y + eps_b in the gyro frame
+    (`frame="b"`) or K y + eps in the magnetometer frame (`frame="m"`); the magnetometer columns
+    are the calibrated field R (y_m - h), of unit norm ("unitless"). Time stamps, accelerometer
+    and truth columns are kept as they are. Parquet metadata says the file is calibrated, by which
+    calibration file and in which frame. Returns the corrected session; the inputs are not changed.
+    """
+    from dataclasses import replace as replaced
+
+    from magyro.io import check_outputs
+    check_outputs([calibration_path, session_path], [output])  # before any work: no input overwritten, writable
+    from magyro.io import load_session, write_session
+
+    if frame not in ("b", "m"):
+        raise InputError(f"unknown frame '{frame}'; use b (the gyro's) or m (the magnetometer's)")
+    cal = Calibration.from_json(calibration_path)
+    session = load_session(session_path, gyro_unit=gyro_unit, mag_unit=mag_unit)
+    if session.metadata.get("calibrated") == "true":
+        raise InputError(f"{session_path}: already calibrated (by {session.metadata.get('calibration', 'a calibration')}, "
+                         f"frame {session.metadata.get('calibration_frame', '?')}); applying a calibration twice "
+                         "corrupts the rates: apply it to the raw session")
+    rates_rad_s, field = cal.apply(session.gyro_rad_s, session.mag, frame=frame)
+    metadata = {**session.metadata, "calibrated": "true", "calibration": str(calibration_path),
+                "calibration_frame": frame, "calibrated_model": (
+                    "gyro = K_g y + eps_b (rad/s, gyro frame b)" if frame == "b" else
+                    "gyro = K y + eps = C_b_m (K_g y + eps_b) (rad/s, magnetometer frame m)")
+                + "; mag = R (y_m - h) (unit norm)",
+                "raw_mag_unit": session.mag_unit, "source_session": str(session_path)}
+    corrected = replaced(session, gyro_rad_s=rates_rad_s, mag=field, mag_unit="unitless", metadata=metadata)
+    write_session(corrected, output)
+    return corrected
+
+
+def export_file(calibration_path, fmt: str, output=None) -> str:
+    """`magyro export`: a calibration JSON as `fmt` ("yaml": a plain YAML file; "c": a C99 header with the
+    matrices and apply functions); written whole to `output` when given. Returns the text."""
+    from magyro.io import check_outputs
+    check_outputs([calibration_path], [output])  # before any work: no input overwritten, the output writable
+    from magyro.io import write_text_atomically
+    from magyro.result.export import FORMATS, export_text
+
+    if fmt not in FORMATS:
+        raise InputError(f"unknown export format '{fmt}'; use one of: {', '.join(FORMATS)}")
+    text = export_text(Calibration.from_json(calibration_path), fmt, source=str(calibration_path))
+    if output is not None:
+        write_text_atomically(output, text)
+    return text

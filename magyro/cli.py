@@ -212,6 +212,27 @@ def import_csv_command(
     run_guarded(action)
 
 
+@import_app.command("ulog")
+def import_ulog_command(
+    log: Path = typer.Argument(..., help="A PX4 ULog file (.ulg)."),
+    output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv)."),
+    instance: int = typer.Option(0, "--instance", min=0, help="Topic instance (multi_id), e.g. 1 for the second gyro and magnetometer."),
+    topics: Optional[str] = typer.Option(None, "--topics", help="GYRO,MAG topics, e.g. sensor_combined,vehicle_magnetometer (default: sensor_gyro,sensor_mag when logged fast enough, else sensor_combined with vehicle_magnetometer)."),
+):
+    """A PX4 flight log: gyro (rad/s) and magnetometer (gauss), fresh samples only, times from the first sample."""
+    from magyro.io.ulog import convert_ulog, parse_topics
+
+    def action():
+        s = convert_ulog(log, output, instance=instance, topics=parse_topics(topics))
+        m = s.metadata
+        typer.echo(f"session written to {output}: {len(s.t_gyro_s)} gyro samples ({s.gyro_rate_hz:.1f} Hz) from "
+                   f"{m['ulog_gyro_topic']} instance {m['ulog_instance']}, {len(s.t_mag_s)} magnetometer samples "
+                   f"({s.mag_rate_hz:.1f} Hz, gauss) from {m['ulog_mag_topic']}, {s.duration_s:.1f} s")
+        typer.echo("PX4 logs are usually already calibrated by the autopilot; the metadata says which fields were used")
+
+    run_guarded(action)
+
+
 @app.command("validate")
 def validate_command(
     session: Path = typer.Argument(..., help="Session file (.parquet or .csv); truth columns qw qx qy qz are used when present."),
@@ -311,6 +332,48 @@ def check_command(
                 typer.echo(f"check written to {output}")
         if check.errors:
             raise InputError(f"{session}: the recording is unusable as it is: {check.error_message()}")
+
+    run_guarded(action)
+
+
+# --------------------------------------------------------------------------- apply, export (issue 12)
+
+
+@app.command("apply")
+def apply_command(
+    calibration: Path = typer.Argument(..., help="Calibration JSON written by magyro solve."),
+    session: Path = typer.Argument(..., help="Session file to correct (.parquet or .csv, docs/spec.md section 2)."),
+    output: Path = typer.Option(..., "-o", "--output", help="Corrected session file to write (.parquet or .csv)."),
+    frame: str = typer.Option("b", "--frame", help="Frame of the corrected rates: b (the gyro's: K_g y + eps_b) or m (the magnetometer's: K y + eps)."),
+    gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
+    mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
+):
+    """Correct a session with a calibration: gyro as calibrated rates in rad/s, magnetometer as the unit field R (y - h)."""
+    from magyro.api import apply_file
+
+    def action():
+        s = apply_file(calibration, session, output, frame=frame, gyro_unit=gyro_unit, mag_unit=mag_unit)
+        typer.echo(f"corrected session written to {output}: {len(s.t_gyro_s)} gyro samples in rad/s (frame {frame}), "
+                   f"{len(s.t_mag_s)} magnetometer samples as the unit field")
+
+    run_guarded(action)
+
+
+@app.command("export")
+def export_command(
+    calibration: Path = typer.Argument(..., help="Calibration JSON written by magyro solve."),
+    fmt: str = typer.Option(..., "--format", "-f", help="yaml (a plain, commented YAML file) or c (a C99 header with the matrices and apply functions)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write here (default: print to the terminal)."),
+):
+    """The calibration for other programs: K_g, bias, C_b_m, K, eps, R, h and the model, as YAML or a C99 header."""
+    from magyro.api import export_file
+
+    def action():
+        text = export_file(calibration, fmt, output)
+        if output is None:
+            typer.echo(text, nl=False)
+        else:
+            typer.echo(f"{fmt} export written to {output}")
 
     run_guarded(action)
 

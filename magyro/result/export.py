@@ -1,0 +1,157 @@
+"""A calibration exported for other programs (issue 12): a plain YAML file, or a C99 header.
+
+Both carry the model of docs/spec.md section 1 with every number written so that it reads back
+to the same double:
+
+    gyro, frame b:   w_b = K_g y + eps_b      (rad/s; the bias is ADDED, not subtracted)
+    gyro, frame m:   w_m = K y + eps          (K = C_b_m K_g, eps = C_b_m eps_b)
+    magnetometer:    m_m = R (y_m - h)        (unit norm; h in the magnetometer's unit)
+
+`export_text(cal, "yaml" | "c", source=...)` returns the text; `magyro export` writes it.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from magyro.errors import InputError
+from magyro.result.calibration import SCHEMA, Calibration
+
+FORMATS = ("yaml", "c")
+
+MODEL_LINES = (
+    "gyro, frame b:  w_b = K_g y + eps_b   (rad/s, gyro frame; the bias is ADDED: not y - b)",
+    "gyro, frame m:  w_m = K y + eps       (rad/s, magnetometer frame; K = C_b_m K_g, eps = C_b_m eps_b)",
+    "magnetometer:   m_m = R (y_m - h)     (unitless, unit norm; h in the magnetometer's unit)",
+    "y: raw gyro in rad/s; y_m: raw magnetometer in its unit; matrices are row-major, [row][column]",
+)
+
+
+def export_text(cal: Calibration, fmt: str, source: str = "") -> str:
+    """The calibration as text in format `fmt` ("yaml" or "c"); `source` names where it came from."""
+    if fmt == "yaml":
+        return yaml_text(cal, source)
+    if fmt == "c":
+        return c_header(cal, source)
+    raise InputError(f"unknown export format '{fmt}'; use one of: {', '.join(FORMATS)}")
+
+
+# --------------------------------------------------------------------------- YAML
+
+
+def _yaml_number(x: float) -> str:
+    """17 significant digits, always with a '.' and an exponent: a float in YAML 1.1 and 1.2, and in JSON."""
+    return f"{float(x):.16e}"
+
+
+def _yaml_array(a) -> str:
+    a = np.asarray(a, dtype=float)
+    if a.ndim == 1:
+        return "[" + ", ".join(_yaml_number(v) for v in a) + "]"
+    return "[" + ", ".join(_yaml_array(row) for row in a) + "]"
+
+
+def yaml_text(cal: Calibration, source: str = "") -> str:
+    """A plain YAML file: the model in comments, then the parameters (flow-style lists, row-major matrices)."""
+    if not np.all(np.isfinite(np.concatenate([np.ravel(a) for a in (cal.K_g, cal.bias_rad_s, cal.C_b_m, cal.K,
+                                                                       cal.eps_rad_s, cal.R, cal.h)]))):
+        raise InputError("the calibration holds a number that is not finite; nothing to export")
+    lines = ["# magyro calibration, exported for other programs (magyro export --format yaml)",
+             *(f"# {line}" for line in MODEL_LINES),
+             "# Every number reads back to the same double.",
+             f"schema: {json.dumps(SCHEMA)}",
+             f"source: {json.dumps(str(source))}",
+             "gyro:",
+             "  # w_b = K_g y + bias_rad_s; K_g upper triangular (scale on the diagonal, non-orthogonality above)",
+             f"  K_g: {_yaml_array(cal.K_g)}",
+             f"  bias_rad_s: {_yaml_array(cal.bias_rad_s)}",
+             "  # w_m = K y + eps_rad_s, the same rates in the magnetometer frame",
+             f"  K: {_yaml_array(cal.K)}",
+             f"  eps_rad_s: {_yaml_array(cal.eps_rad_s)}",
+             "misalignment:",
+             "  # C_b_m turns gyro-frame vectors into magnetometer-frame vectors: w_m = C_b_m w_b",
+             f"  C_b_m: {_yaml_array(cal.C_b_m)}",
+             "magnetometer:",
+             "  # m_m = R (y_m - h); R upper triangular, in 1/unit; h in unit",
+             f"  unit: {json.dumps(cal.mag_unit)}",
+             f"  R: {_yaml_array(cal.R)}",
+             f"  h: {_yaml_array(cal.h)}",
+             ]
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------- C99 header
+
+
+def _c_comment(text: str) -> str:
+    """Text safe inside a C block comment, on one line."""
+    return " ".join(str(text).replace("*/", "* /").split())
+
+
+def _c_number(x: float) -> str:
+    """The shortest decimal that reads back to the same double (C99 strtod rounds correctly)."""
+    text = repr(float(x))
+    return text if any(c in text for c in ".e") else text + ".0"
+
+
+def _c_array(a) -> str:
+    a = np.asarray(a, dtype=float)
+    if a.ndim == 1:
+        return "{" + ", ".join(_c_number(v) for v in a) + "}"
+    return "{\n    " + ",\n    ".join(_c_array(row) for row in a) + "\n}"
+
+
+def c_header(cal: Calibration, source: str = "") -> str:
+    """A C99 header: `static const double` parameters and `static inline` apply functions, no allocation."""
+    yaml_text(cal, source)  # the same finiteness check
+    arrays = (("magyro_K_g", cal.K_g, "[3][3]", "gyro scale and non-orthogonality, upper triangular"),
+              ("magyro_bias_rad_s", cal.bias_rad_s, "[3]", "eps_b, rad/s, ADDED: w_b = K_g y + eps_b"),
+              ("magyro_K", cal.K, "[3][3]", "C_b_m K_g"),
+              ("magyro_eps_rad_s", cal.eps_rad_s, "[3]", "eps = C_b_m eps_b, rad/s"),
+              ("magyro_C_b_m", cal.C_b_m, "[3][3]", "gyro frame to magnetometer frame"),
+              ("magyro_R", cal.R, "[3][3]", f"magnetometer soft iron, 1/{_c_comment(cal.mag_unit)}"),
+              ("magyro_h", cal.h, "[3]", f"magnetometer hard iron, {_c_comment(cal.mag_unit)}"))
+    lines = ["/* magyro calibration, exported for other programs (magyro export --format c).",
+             f" * source: {_c_comment(source)}",
+             f" * magnetometer unit: {_c_comment(cal.mag_unit)}",
+             *(f" *   {_c_comment(line)}" for line in MODEL_LINES),
+             " * C99, no allocation; include it in one or more .c files. */",
+             "#ifndef MAGYRO_CALIBRATION_H",
+             "#define MAGYRO_CALIBRATION_H",
+             ""]
+    for name, value, shape, what in arrays:
+        lines.append(f"/* {what} */")
+        lines.append(f"static const double {name}{shape} = {_c_array(value)};")
+    lines += ["",
+              "/* w = M y + b for a 3x3 M and 3-vectors y, b */",
+              "static inline void magyro_affine3(const double M[3][3], const double y[3], const double b[3], double w[3])",
+              "{",
+              "    int i;",
+              "    for (i = 0; i < 3; ++i) {",
+              "        w[i] = M[i][0] * y[0] + M[i][1] * y[1] + M[i][2] * y[2] + b[i];",
+              "    }",
+              "}",
+              "",
+              "/* calibrated rate in the gyro frame b: w = K_g y + eps_b (rad/s in, rad/s out) */",
+              "static inline void magyro_apply_gyro(const double y[3], double w[3])",
+              "{",
+              "    magyro_affine3(magyro_K_g, y, magyro_bias_rad_s, w);",
+              "}",
+              "",
+              "/* calibrated rate in the magnetometer frame m: w = K y + eps (rad/s in, rad/s out) */",
+              "static inline void magyro_apply_gyro_m(const double y[3], double w[3])",
+              "{",
+              "    magyro_affine3(magyro_K, y, magyro_eps_rad_s, w);",
+              "}",
+              "",
+              "/* calibrated field in the magnetometer frame: m = R (y_m - h), unit norm */",
+              "static inline void magyro_apply_mag(const double y_m[3], double m[3])",
+              "{",
+              "    const double d[3] = {y_m[0] - magyro_h[0], y_m[1] - magyro_h[1], y_m[2] - magyro_h[2]};",
+              "    const double zero[3] = {0.0, 0.0, 0.0};",
+              "    magyro_affine3(magyro_R, d, zero, m);",
+              "}",
+              "",
+              "#endif /* MAGYRO_CALIBRATION_H */"]
+    return "\n".join(lines) + "\n"
