@@ -286,11 +286,12 @@ def apply_file(calibration_path, session_path, output, frame: str = "b", gyro_un
 
 
 def export_file(calibration_path, fmt: str, output=None) -> str:
-    """`magyro export`: a calibration JSON as `fmt` ("yaml": a plain YAML file; "c": a C99 header with the
-    matrices and apply functions); written whole to `output` when given. Returns the text."""
-    from magyro.io import check_outputs
+    """`magyro export`: a calibration JSON as `fmt` (`magyro.result.export.FORMATS`: yaml, a plain YAML file;
+    c, a C99 header with the matrices and apply functions; kalibr, its scale-misalignment IMU yaml; px4, a
+    QGroundControl parameter file), written whole to `output` when given. Returns the text."""
+    from magyro.io import check_outputs, write_text_atomically
+
     check_outputs([calibration_path], [output])  # before any work: no input overwritten, the output writable
-    from magyro.io import write_text_atomically
     from magyro.result.export import FORMATS, export_text
 
     if fmt not in FORMATS:

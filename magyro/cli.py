@@ -233,6 +233,26 @@ def import_ulog_command(
     run_guarded(action)
 
 
+@import_app.command("rosbag")
+def import_rosbag_command(
+    bag: Path = typer.Argument(..., help="A ROS1 bag file (.bag) or a ROS2 bag folder."),
+    output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv)."),
+    imu_topic: Optional[str] = typer.Option(None, "--imu-topic", help="The sensor_msgs/msg/Imu topic (default: the bag's only one)."),
+    mag_topic: Optional[str] = typer.Option(None, "--mag-topic", help="The sensor_msgs/msg/MagneticField topic (default: the bag's only one)."),
+):
+    """A ROS bag: gyro (rad/s) and accelerometer from Imu, magnetometer (tesla to uT), times from the header stamps."""
+    from magyro.io.rosbag import convert_rosbag
+
+    def action():
+        s = convert_rosbag(bag, output, imu_topic=imu_topic, mag_topic=mag_topic)
+        m = s.metadata
+        typer.echo(f"session written to {output}: {len(s.t_gyro_s)} gyro samples ({s.gyro_rate_hz:.1f} Hz) from "
+                   f"{m['rosbag_imu_topic']}, {len(s.t_mag_s)} magnetometer samples ({s.mag_rate_hz:.1f} Hz, uT) "
+                   f"from {m['rosbag_mag_topic']}, {s.duration_s:.1f} s ({m['rosbag_ros_version']} bag, header stamps)")
+
+    run_guarded(action)
+
+
 @app.command("validate")
 def validate_command(
     session: Path = typer.Argument(..., help="Session file (.parquet or .csv); truth columns qw qx qy qz are used when present."),
@@ -362,7 +382,7 @@ def apply_command(
 @app.command("export")
 def export_command(
     calibration: Path = typer.Argument(..., help="Calibration JSON written by magyro solve."),
-    fmt: str = typer.Option(..., "--format", "-f", help="yaml (a plain, commented YAML file) or c (a C99 header with the matrices and apply functions)."),
+    fmt: str = typer.Option(..., "--format", "-f", help="yaml (a plain, commented YAML file), c (a C99 header with the matrices and apply functions), kalibr (Kalibr's scale-misalignment IMU yaml, exact) or px4 (a QGroundControl .params file: gyro offset only, its cost stated)."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write here (default: print to the terminal)."),
 ):
     """The calibration for other programs: K_g, bias, C_b_m, K, eps, R, h and the model, as YAML or a C99 header."""

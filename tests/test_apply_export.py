@@ -218,8 +218,126 @@ def test_cli_export_prints_without_output_and_refuses_an_unknown_format(solved, 
     shown = run_magyro("export", cal_path, "--format", "c")
     assert shown.returncode == 0, shown.stderr
     assert "static inline void magyro_apply_gyro(const double y[3], double w[3])" in shown.stdout
-    message = assert_plain_failure(run_magyro("export", cal_path, "--format", "px4", "-o", folder / "x.txt"), 2)
+    message = assert_plain_failure(run_magyro("export", cal_path, "--format", "nope", "-o", folder / "x.txt"), 2)
     assert "unknown export format" in message
     assert not (folder / "x.txt").exists()
     message = assert_plain_failure(run_magyro("export", TRUTH_FILE, "--format", "yaml"), 2)
     assert "not a calibration" in message
+
+
+# --------------------------------------------------------------------------- kalibr, px4 (result/export_tools.py)
+
+
+def test_kalibr_export_inverted_as_kalibr_does_gives_calibration_apply(solved, samples):
+    """Kalibr: y = M C_gyro_i w_i + A (C_gyro_i a_i) + b; its consumer inverts it for w_i (frame i = magyro's b)."""
+    folder, _, cal, cal_path = solved
+    text = apply_export(cal_path, "kalibr", folder / "imu.yaml")
+    imu = read_simple_yaml(text)["imu0"]
+    assert imu["model"] == "scale-misalignment"
+    M, A = np.array(imu["gyroscopes"]["M"]), np.array(imu["gyroscopes"]["A"])
+    C, b = np.array(imu["gyroscopes"]["C_gyro_i"]), np.array(imu["gyroscopes"]["b"])
+    assert np.all(np.triu(M, 1) == 0) and np.all(np.diag(M) > 0)          # Kalibr's lower-triangular M
+    np.testing.assert_allclose(C @ C.T, np.eye(3), rtol=0, atol=1e-12)
+    assert abs(np.linalg.det(C) - 1.0) < 1e-12
+    assert np.all(A == 0)
+    gyro, _ = samples
+    a_i = np.zeros_like(gyro)                      # A = 0: any specific force gives the same rates
+    w_i = np.linalg.solve(M, (gyro - b - (a_i @ C.T) @ A.T).T).T @ C          # C^T M^-1 (y - b - A C a)
+    rates_b = cal.apply(gyro)[0]
+    np.testing.assert_allclose(w_i, rates_b, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(rates_b @ C.T @ M.T + b, gyro, rtol=0, atol=1e-9)   # Kalibr's forward model
+    extra = imu["magyro"]
+    np.testing.assert_array_equal(np.array(extra["C_b_m"]), cal.C_b_m)
+    np.testing.assert_array_equal(np.array(extra["R"]), cal.R)
+    np.testing.assert_array_equal(np.array(extra["h"]), cal.h)
+    np.testing.assert_allclose(w_i @ np.array(extra["C_b_m"]).T, cal.apply(gyro, frame="m")[0], rtol=0, atol=1e-9)
+
+
+def read_params(text: str) -> dict:
+    """A QGroundControl .params file: '#' header lines, then vehicle id, component id, name, value, type."""
+    values = {}
+    for line in text.splitlines():
+        if not line.strip() or line.startswith("#"):
+            continue
+        vid, cid, name, value, ptype = line.split("\t")
+        assert (vid, cid, ptype) == ("1", "1", "9")               # REAL32 on vehicle 1, component 1
+        values[name] = float(value)
+    return values
+
+
+def test_px4_gyro_offset_exact_at_rest_and_its_cost_at_360_deg_s(solved, samples):
+    from magyro.result.export_tools import RAD2DEG, px4_gyro_cost
+
+    folder, _, cal, cal_path = solved
+    text = apply_export(cal_path, "px4", folder / "calib.params")
+    params = read_params(text)
+    off = np.array([params[f"CAL_GYRO0_{ax}OFF"] for ax in "XYZ"])
+    # PX4: corrected = y - OFF. At rest magyro reads y0 with K_g y0 + eps_b = 0: there PX4 gives 0 as magyro does.
+    y0 = off[None, :]
+    np.testing.assert_allclose(cal.apply(y0)[0], 0.0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(y0 - off, cal.apply(y0)[0], rtol=0, atol=1e-15)
+    assert np.max(np.abs(cal.apply(off.astype(np.float32)[None, :].astype(float))[0])) < 1e-9   # PX4's REAL32
+    cost = px4_gyro_cost(cal, 360.0)
+    assert f"{cost['worst_deg_s']:.4f} deg/s about the worst direction" in text
+    for axis, stated in [*zip(np.eye(3), cost["per_axis_deg_s"]), (cost["worst_axis"], cost["worst_deg_s"])]:
+        w_true = np.deg2rad(360.0) * axis
+        y = np.linalg.solve(cal.K_g, w_true - cal.bias_rad_s)[None, :]         # the reading of that true rate
+        magyro_w = cal.apply(y)[0][0]
+        np.testing.assert_allclose(magyro_w, w_true, rtol=0, atol=1e-12)
+        assert abs(np.linalg.norm((y[0] - off) - magyro_w) * RAD2DEG - stated) < 1e-9
+    assert cost["worst_deg_s"] >= np.max(cost["per_axis_deg_s"]) - 1e-12
+    gyro, _ = samples       # on real samples PX4's error is (K_g^-1 - I) w, w = magyro's rate
+    rates = cal.apply(gyro)[0]
+    np.testing.assert_allclose((gyro - off) - rates, rates @ (np.linalg.inv(cal.K_g) - np.eye(3)).T, rtol=0, atol=1e-12)
+
+
+def test_px4_magnetometer_is_calibration_apply_in_gauss_up_to_pxs_scale_and_a_stated_rotation(solved, samples):
+    from magyro.result.export_tools import px4_parameters
+
+    folder, _, cal, cal_path = solved
+    assert cal.mag_unit == "uT"
+    params = read_params(apply_export(cal_path, "px4", None))
+    off = np.array([params[f"CAL_MAG0_{ax}OFF"] for ax in "XYZ"])
+    xy, xz, yz = (params[f"CAL_MAG0_{ax}ODIAG"] for ax in "XYZ")
+    S = np.diag([params[f"CAL_MAG0_{ax}SCALE"] for ax in "XYZ"]) + np.array([[0, xy, xz], [xy, 0, yz], [xz, yz, 0]])
+    _, mag = samples
+    px4_field = (mag / 100.0 - off) @ S.T          # PX4 Magnetometer::Correct, rotation none, no power comp.
+    field = cal.apply(np.zeros((len(mag), 3)), mag)[1]
+    p = px4_parameters(cal)
+    k = p["mag_field_gauss"]
+    assert 0.2 < k < 0.7                                              # a field strength on Earth, in gauss
+    np.testing.assert_allclose(px4_field, k * field @ p["mag_rotation_U"], rtol=0, atol=1e-9)   # k U^T m
+    # without U: lengths and angles are magyro's, scaled by k
+    np.testing.assert_allclose(np.linalg.norm(px4_field, axis=1), k * np.linalg.norm(field, axis=1), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(px4_field[:50] @ px4_field[:50].T, k**2 * field[:50] @ field[:50].T, rtol=0, atol=1e-9)
+
+
+def test_px4_refuses_a_magnetometer_unit_it_cannot_convert(solved, run_magyro, assert_plain_failure):
+    import dataclasses
+
+    from magyro.result.export import export_text
+    from magyro.result.export_tools import px4_parameters
+
+    folder, _, cal, _ = solved
+    for unit in ("counts", "unknown"):
+        with pytest.raises(InputError, match=f"magnetometer unit '{unit}' cannot be converted to gauss"):
+            export_text(dataclasses.replace(cal, mag_unit=unit), "px4")
+    path = folder / "counts.json"
+    dataclasses.replace(cal, mag_unit="counts").to_json(path)
+    message = assert_plain_failure(run_magyro("export", path, "--format", "px4", "-o", folder / "c.params"), 2)
+    assert "cannot be converted to gauss" in message and not (folder / "c.params").exists()
+    for unit, factor in (("G", 1.0), ("mG", 1e-3), ("nT", 1e-5)):    # a unit it can convert gives the same gauss
+        scaled = dataclasses.replace(cal, mag_unit=unit, h=cal.h * 1e-2 / factor, R=cal.R / (1e-2 / factor))
+        np.testing.assert_allclose(px4_parameters(scaled)["mag_offset_gauss"], cal.h / 100.0, rtol=1e-12, atol=0)
+
+
+def test_cli_export_kalibr_and_px4(solved, run_magyro):
+    folder, _, _, cal_path = solved
+    shown = run_magyro("export", cal_path, "--format", "kalibr")
+    assert shown.returncode == 0, shown.stderr
+    assert '  model: "scale-misalignment"' in shown.stdout and "C_gyro_i:" in shown.stdout
+    out = folder / "cli.params"
+    written = run_magyro("export", cal_path, "--format", "px4", "-o", out)
+    assert written.returncode == 0, written.stderr
+    assert "# Vehicle-Id Component-Id Name Value Type" in out.read_text()
+    assert "kalibr" in run_magyro("export", "--help").stdout

@@ -34,6 +34,7 @@ _EXPORTS = {
     "convert_broad": "broad", "BROAD_CITATION": "broad", "BROAD_LICENSE": "broad",
     "import_csv": "csv_export", "guess_column_map": "csv_export", "parse_column_map": "csv_export",
     "import_ulog": "ulog", "convert_ulog": "ulog",
+    "import_rosbag": "rosbag", "convert_rosbag": "rosbag",
 }
 
 __all__ = [  # = list(_EXPORTS), spelled out for linters
@@ -41,7 +42,7 @@ __all__ = [  # = list(_EXPORTS), spelled out for linters
     "session_from_table", "MIN_SAMPLES", "MAX_PLAUSIBLE_RATE_RAD_S", "trim", "cut", "decimate",
     "write_text_atomically", "write_atomically", "check_outputs", "import_broad", "import_broad_movement",
     "broad_movement_span", "convert_broad", "BROAD_CITATION", "BROAD_LICENSE", "import_csv",
-    "guess_column_map", "parse_column_map", "import_ulog", "convert_ulog",
+    "guess_column_map", "parse_column_map", "import_ulog", "convert_ulog", "import_rosbag", "convert_rosbag",
 ]
 
 if TYPE_CHECKING:

@@ -7,7 +7,9 @@ to the same double:
     gyro, frame m:   w_m = K y + eps          (K = C_b_m K_g, eps = C_b_m eps_b)
     magnetometer:    m_m = R (y_m - h)        (unit norm; h in the magnetometer's unit)
 
-`export_text(cal, "yaml" | "c", source=...)` returns the text; `magyro export` writes it.
+`export_text(cal, "yaml" | "c" | "kalibr" | "px4", source=...)` returns the text; `magyro export` writes it.
+The formats of other tools (Kalibr's scale-misalignment IMU yaml, a PX4 .params file) are in
+magyro/result/export_tools.py, with their mappings and what they cannot hold.
 """
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ import numpy as np
 from magyro.errors import InputError
 from magyro.result.calibration import SCHEMA, Calibration
 
-FORMATS = ("yaml", "c")
+FORMATS = ("yaml", "c", "kalibr", "px4")
 
 MODEL_LINES = (
     "gyro, frame b:  w_b = K_g y + eps_b   (rad/s, gyro frame; the bias is ADDED: not y - b)",
@@ -29,11 +31,15 @@ MODEL_LINES = (
 
 
 def export_text(cal: Calibration, fmt: str, source: str = "") -> str:
-    """The calibration as text in format `fmt` ("yaml" or "c"); `source` names where it came from."""
+    """The calibration as text in format `fmt` (one of FORMATS); `source` names where it came from."""
     if fmt == "yaml":
         return yaml_text(cal, source)
     if fmt == "c":
         return c_header(cal, source)
+    if fmt in ("kalibr", "px4"):
+        from magyro.result.export_tools import kalibr_text, px4_text
+
+        return (kalibr_text if fmt == "kalibr" else px4_text)(cal, source)
     raise InputError(f"unknown export format '{fmt}'; use one of: {', '.join(FORMATS)}")
 
 

@@ -1,0 +1,202 @@
+"""Importing ROS bags (ROS1 `.bag` files, ROS2 bag folders) with rosbags (`pip install 'magyro[rosbag]'`).
+
+Topics: the gyro is a `sensor_msgs/msg/Imu` topic (`angular_velocity`, rad/s; its
+`linear_acceleration`, m/s^2, is the accelerometer unless the messages mark it absent with
+`linear_acceleration_covariance[0] == -1`), the magnetometer a `sensor_msgs/msg/MagneticField`
+topic (`magnetic_field`, tesla, imported in uT: value * 1e6). Each is the topic named, or
+else the only topic of its type in the bag; several of a type and none named is refused
+with the list of candidates.
+
+Times are the message header stamps (sec + nanosec, integer nanoseconds), not the bag's
+receive times; in the bag's order, a message whose stamp is not after every earlier stamp of
+its topic is dropped. Times are (stamp - first stamp) / 1e9 s, the first stamp being the
+earliest gyro or magnetometer stamp imported; it is kept in the metadata
+(`rosbag_time_origin_ns`). Gyro and accelerometer values are the messages' float64 numbers,
+unchanged.
+"""
+from __future__ import annotations
+
+import importlib.metadata
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from magyro.errors import InputError, one_line
+from magyro.io.atomic import check_outputs
+from magyro.io.checks import MIN_SAMPLES, session_from_table
+from magyro.io.columns import ACC_COLUMNS, GYRO_COLUMNS, MAG_COLUMNS, TIME_COLUMN
+from magyro.io.session_file import write_imported
+from magyro.session import Session
+
+IMU_TYPE = "sensor_msgs/msg/Imu"
+MAG_TYPE = "sensor_msgs/msg/MagneticField"
+TESLA_TO_UT = 1e6
+ROSBAG_INSTALL_HINT = "install it with pip install 'magyro[rosbag]' (or pip install rosbags)"
+
+
+def import_rosbag(path, imu_topic: str | None = None, mag_topic: str | None = None) -> Session:
+    """A ROS1 bag file or ROS2 bag folder as a Session: gyro rad/s, magnetometer uT (`mag_unit="uT"`).
+
+    `imu_topic` (a sensor_msgs/msg/Imu topic) and `mag_topic` (a sensor_msgs/msg/MagneticField
+    topic) name the topics; None finds the only one of the type. Raises `InputError` for a
+    path that is not a bag, a bag without such a topic, several candidates and none named, a
+    named topic the bag does not have or of the wrong type, or too few stamped samples.
+    """
+    path = Path(path)
+    AnyReader, get_typestore, Stores, rosbags_version = _rosbags(path)
+    try:
+        reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
+        reader.open()
+    except Exception as exc:
+        raise InputError(f"{path}: not a ROS bag ({one_line(exc)}); pass a ROS1 .bag file or a ROS2 bag folder") \
+            from None
+    try:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        imu_name = _choose(path, topics, IMU_TYPE, imu_topic, "--imu-topic")
+        mag_name = _choose(path, topics, MAG_TYPE, mag_topic, "--mag-topic")
+        imu = _read(path, reader, imu_name, IMU_TYPE)
+        mag = _read(path, reader, mag_name, MAG_TYPE)
+        ros_version = "ROS2" if reader.is2 else "ROS1"
+    except InputError:
+        raise
+    except Exception as exc:
+        raise InputError(f"{path}: cannot be read as a ROS bag ({one_line(exc)})") from None
+    finally:
+        reader.close()
+
+    origin_ns = min(imu["stamps_ns"][0], mag["stamps_ns"][0])
+    t_imu_s = (imu["stamps_ns"] - origin_ns) / 1e9
+    t_mag_s = (mag["stamps_ns"] - origin_ns) / 1e9
+    with_acc = bool(imu["acc_present"].any())
+    table = _table(t_imu_s, imu["gyro"], imu["acc"] if with_acc else None, t_mag_s, mag["mag"])
+
+    metadata = {
+        "source": str(path),
+        "rosbag_file": path.name,
+        "imported_from": (f"{ros_version} bag (rosbags {rosbags_version}): "
+                          f"gyro{' and accelerometer' if with_acc else ''} "
+                          f"{_describe(imu)}; magnetometer {_describe(mag)}"),
+        "gyro_unit": "rad/s",
+        "mag_unit": "uT",
+        "rosbag_ros_version": ros_version,
+        "rosbag_imu_topic": imu_name,
+        "rosbag_imu_type": IMU_TYPE,
+        "rosbag_mag_topic": mag_name,
+        "rosbag_mag_type": MAG_TYPE,
+        "rosbag_stamp_source": "header.stamp (sec + nanosec), not the bag's receive time",
+        "rosbag_time_origin_ns": f"{origin_ns} (t = 0 s; t = (stamp - origin) / 1e9)",
+        "rosbag_rows_dropped": (f"gyro {imu['dropped']} of {imu['rows']}, magnetometer {mag['dropped']} of "
+                                f"{mag['rows']} (stamp not after an earlier message's)"),
+        "rosbag_units": ("angular_velocity rad/s as is; magnetic_field tesla * 1e6 = uT"
+                         + ("; linear_acceleration m/s^2 as is" if with_acc else
+                            "; linear_acceleration marked absent (covariance[0] = -1), not imported")),
+    }
+    if with_acc:
+        metadata["acc_unit"] = "m/s^2"
+    return session_from_table(table, metadata, str(path), gyro_unit="rad/s", mag_unit="uT")
+
+
+def convert_rosbag(path, output, imu_topic: str | None = None, mag_topic: str | None = None,
+                   compression_level: int | None = None) -> Session:
+    """`magyro import rosbag`: `import_rosbag(path, imu_topic, mag_topic)` written to `output` (`write_imported`).
+
+    An `output` that is the bag or cannot be written is refused before the bag is read.
+    Returns the written session.
+    """
+    check_outputs([path], [output])
+    session = import_rosbag(path, imu_topic=imu_topic, mag_topic=mag_topic)
+    write_imported(session, output, compression_level=compression_level)
+    return session
+
+
+# --------------------------------------------------------------------------- reading the bag
+
+
+def _rosbags(path: Path):
+    if not path.exists():
+        raise InputError(f"{path}: no such file or folder; check the path")
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError:
+        raise InputError(f"{path}: reading ROS bags needs the rosbags package; {ROSBAG_INSTALL_HINT}") from None
+    try:
+        version = importlib.metadata.version("rosbags")
+    except importlib.metadata.PackageNotFoundError:
+        version = "unknown"
+    return AnyReader, get_typestore, Stores, version
+
+
+def _choose(path: Path, topics: dict, msgtype: str, named: str | None, option: str) -> str:
+    """The topic named (checked), else the only topic of `msgtype`."""
+    candidates = sorted(t for t, typ in topics.items() if typ == msgtype)
+    if named is not None:
+        if named not in topics:
+            listed = ", ".join(candidates) if candidates else f"none of type {msgtype}"
+            raise InputError(f"{path}: topic {named} does not exist in the bag; its {msgtype} topics: {listed}")
+        if topics[named] != msgtype:
+            raise InputError(f"{path}: topic {named} is {topics[named]}, not {msgtype}")
+        return named
+    if not candidates:
+        raise InputError(f"{path}: no {msgtype} topic in the bag (its topics: "
+                         f"{', '.join(f'{t} ({typ})' for t, typ in sorted(topics.items())) or 'none'})")
+    if len(candidates) > 1:
+        raise InputError(f"{path}: several {msgtype} topics: {', '.join(candidates)}; choose one with {option}")
+    return candidates[0]
+
+
+def _read(path: Path, reader, topic: str, msgtype: str) -> dict:
+    """A topic's messages: int64 stamps (ns) strictly increasing and float64 values, in the bag's order."""
+    connections = [c for c in reader.connections if c.topic == topic]
+    stamps, gyro, acc, acc_present, mag = [], [], [], [], []
+    for connection, _, rawdata in reader.messages(connections=connections):
+        msg = reader.deserialize(rawdata, connection.msgtype)
+        stamp = msg.header.stamp
+        stamps.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec))
+        if msgtype == IMU_TYPE:
+            w, a = msg.angular_velocity, msg.linear_acceleration
+            gyro.append((w.x, w.y, w.z))
+            acc.append((a.x, a.y, a.z))
+            acc_present.append(msg.linear_acceleration_covariance[0] != -1)
+        else:
+            b = msg.magnetic_field
+            mag.append((b.x, b.y, b.z))
+    stamps = np.asarray(stamps, dtype=np.int64)
+    rows = len(stamps)
+    keep = np.ones(rows, dtype=bool)
+    if rows > 1:  # strictly after every earlier stamp
+        keep[1:] = stamps[1:] > np.maximum.accumulate(stamps)[:-1]
+    stream = {"topic": topic, "stamps_ns": stamps[keep], "rows": rows, "dropped": rows - int(keep.sum())}
+    name = "gyro" if msgtype == IMU_TYPE else "magnetometer"
+    if len(stream["stamps_ns"]) < MIN_SAMPLES:
+        raise InputError(f"{path}: topic {topic} has {len(stream['stamps_ns'])} {name} messages with increasing "
+                         f"header stamps (of {rows}); at least {MIN_SAMPLES} are needed (are the stamps set?)")
+    if msgtype == IMU_TYPE:
+        stream["gyro"] = np.asarray(gyro, dtype=np.float64).reshape(-1, 3)[keep]
+        stream["acc_present"] = np.asarray(acc_present, dtype=bool)[keep]
+        stream["acc"] = np.asarray(acc, dtype=np.float64).reshape(-1, 3)[keep]
+        stream["acc"][~stream["acc_present"]] = np.nan  # marked absent: no accelerometer sample
+    else:
+        stream["mag"] = np.asarray(mag, dtype=np.float64).reshape(-1, 3)[keep] * TESLA_TO_UT
+    return stream
+
+
+def _table(t_imu_s: np.ndarray, gyro: np.ndarray, acc: np.ndarray | None,
+           t_mag_s: np.ndarray, mag: np.ndarray) -> pd.DataFrame:
+    """The session table: one row per distinct time, NaN where a sensor has no sample."""
+    t_s = np.union1d(t_imu_s, t_mag_s)
+    columns = {TIME_COLUMN: t_s}
+    groups = [(t_imu_s, gyro, GYRO_COLUMNS), (t_mag_s, mag, MAG_COLUMNS)]
+    if acc is not None:
+        groups.append((t_imu_s, acc, ACC_COLUMNS))
+    for t_group, samples, names in groups:
+        out = np.full((len(t_s), 3), np.nan)
+        out[np.searchsorted(t_s, t_group)] = samples
+        columns.update({n: out[:, k] for k, n in enumerate(names)})
+    return pd.DataFrame(columns)
+
+
+def _describe(stream: dict) -> str:
+    return (f"{stream['topic']} (header stamps, {len(stream['stamps_ns'])} samples, "
+            f"{stream['dropped']} dropped)")
