@@ -46,16 +46,16 @@ def export_text(cal: Calibration, fmt: str, source: str = "") -> str:
 # --------------------------------------------------------------------------- YAML
 
 
-def _yaml_number(x: float) -> str:
+def yaml_number(x: float) -> str:
     """17 significant digits, always with a '.' and an exponent: a float in YAML 1.1 and 1.2, and in JSON."""
     return f"{float(x):.16e}"
 
 
-def _yaml_array(a) -> str:
+def yaml_array(a) -> str:
     a = np.asarray(a, dtype=float)
     if a.ndim == 1:
-        return "[" + ", ".join(_yaml_number(v) for v in a) + "]"
-    return "[" + ", ".join(_yaml_array(row) for row in a) + "]"
+        return "[" + ", ".join(yaml_number(v) for v in a) + "]"
+    return "[" + ", ".join(yaml_array(row) for row in a) + "]"
 
 
 def yaml_text(cal: Calibration, source: str = "") -> str:
@@ -70,19 +70,19 @@ def yaml_text(cal: Calibration, source: str = "") -> str:
              f"source: {json.dumps(str(source))}",
              "gyro:",
              "  # w_b = K_g y + bias_rad_s; K_g upper triangular (scale on the diagonal, non-orthogonality above)",
-             f"  K_g: {_yaml_array(cal.K_g)}",
-             f"  bias_rad_s: {_yaml_array(cal.bias_rad_s)}",
+             f"  K_g: {yaml_array(cal.K_g)}",
+             f"  bias_rad_s: {yaml_array(cal.bias_rad_s)}",
              "  # w_m = K y + eps_rad_s, the same rates in the magnetometer frame",
-             f"  K: {_yaml_array(cal.K)}",
-             f"  eps_rad_s: {_yaml_array(cal.eps_rad_s)}",
+             f"  K: {yaml_array(cal.K)}",
+             f"  eps_rad_s: {yaml_array(cal.eps_rad_s)}",
              "misalignment:",
              "  # C_b_m turns gyro-frame vectors into magnetometer-frame vectors: w_m = C_b_m w_b",
-             f"  C_b_m: {_yaml_array(cal.C_b_m)}",
+             f"  C_b_m: {yaml_array(cal.C_b_m)}",
              "magnetometer:",
              "  # m_m = R (y_m - h); R upper triangular, in 1/unit; h in unit",
              f"  unit: {json.dumps(cal.mag_unit)}",
-             f"  R: {_yaml_array(cal.R)}",
-             f"  h: {_yaml_array(cal.h)}",
+             f"  R: {yaml_array(cal.R)}",
+             f"  h: {yaml_array(cal.h)}",
              ]
     return "\n".join(lines) + "\n"
 

@@ -26,23 +26,12 @@ import numpy as np
 
 from magyro.errors import InputError
 from magyro.result.calibration import Calibration
+from magyro.result.export import yaml_array, yaml_number
 
 # the magnetometer unit labels magyro writes (magyro/io/csv_export.py MAG_UNITS), in gauss
 GAUSS_PER_UNIT = {"ut": 1e-2, "µt": 1e-2, "μt": 1e-2, "microtesla": 1e-2, "nt": 1e-5, "nanotesla": 1e-5,
                   "g": 1.0, "gauss": 1.0, "mg": 1e-3, "milligauss": 1e-3, "t": 1e4, "tesla": 1e4}
 RAD2DEG = 180.0 / np.pi
-
-
-def _number(x: float) -> str:
-    """17 significant digits: reads back to the same double (a float in YAML 1.1/1.2 and in a .params file)."""
-    return f"{float(x):.16e}"
-
-
-def _array(a) -> str:
-    a = np.asarray(a, dtype=float)
-    if a.ndim == 1:
-        return "[" + ", ".join(_number(v) for v in a) + "]"
-    return "[" + ", ".join(_array(row) for row in a) + "]"
 
 
 def _one_line(text) -> str:
@@ -101,20 +90,20 @@ def kalibr_text(cal: Calibration, source: str = "") -> str:
              "# file as Kalibr input); the magnetometer (R, h) and C_b_m are under the extra key 'magyro'.",
              "imu0:",
              '  model: "scale-misalignment"',
-             f"  T_i_b: {_array(np.eye(4))}",
-             f"  time_offset: {_number(0.0)}",
+             f"  T_i_b: {yaml_array(np.eye(4))}",
+             f"  time_offset: {yaml_number(0.0)}",
              "  gyroscopes:",
-             f"    M: {_array(p['M'])}",
-             f"    A: {_array(p['A'])}",
-             f"    C_gyro_i: {_array(p['C_gyro_i'])}",
+             f"    M: {yaml_array(p['M'])}",
+             f"    A: {yaml_array(p['A'])}",
+             f"    C_gyro_i: {yaml_array(p['C_gyro_i'])}",
              "    # not a Kalibr key: the constant gyro bias in Kalibr's sign, rad/s",
-             f"    b: {_array(p['b'])}",
+             f"    b: {yaml_array(p['b'])}",
              "  magyro:",
              "    # not Kalibr keys: w_m = C_b_m w_i (magnetometer frame); m_m = R (y_m - h), unit norm",
-             f"    C_b_m: {_array(cal.C_b_m)}",
+             f"    C_b_m: {yaml_array(cal.C_b_m)}",
              f"    mag_unit: {json.dumps(str(cal.mag_unit))}",
-             f"    R: {_array(cal.R)}",
-             f"    h: {_array(cal.h)}",
+             f"    R: {yaml_array(cal.R)}",
+             f"    h: {yaml_array(cal.h)}",
              ]
     return "\n".join(lines) + "\n"
 
@@ -187,9 +176,9 @@ def px4_text(cal: Calibration, source: str = "", rate_deg_s: float = 360.0) -> s
               f"#   COST at {cost['rate_deg_s']:g} deg/s about the x, y, z axes: {per_axis} deg/s;",
               f"#   {cost['worst_deg_s']:.4f} deg/s about the worst direction.",
               "# Not held (magyro's w_b = K_g y + eps_b):",
-              *(f"#   K_g row {i}: {_array(cal.K_g[i])}" for i in range(3)),
+              *(f"#   K_g row {i}: {yaml_array(cal.K_g[i])}" for i in range(3)),
               f"#   gyro-to-magnetometer rotation C_b_m ({cost['misalignment_deg']:.4f} deg), rows:",
-              *(f"#     {_array(cal.C_b_m[i])}" for i in range(3)),
+              *(f"#     {yaml_array(cal.C_b_m[i])}" for i in range(3)),
               "# MAG: magyro's R = U P (U a rotation, P symmetric); PX4 holds S = P k, OFF = h, in gauss",
               f"#   (unit '{_one_line(cal.mag_unit)}' x {p['gauss_per_unit']:g}); k = {p['mag_field_gauss']:.6g} gauss,"
               " the field strength R normalises, so PX4's field = k U^T m_m:",
@@ -207,4 +196,4 @@ def px4_text(cal: Calibration, source: str = "", rate_deg_s: float = 360.0) -> s
         rows.append((f"CAL_MAG0_{ax}SCALE", p["mag_scale"][i, i]))
     S = p["mag_scale"]
     rows += [("CAL_MAG0_XODIAG", S[0, 1]), ("CAL_MAG0_YODIAG", S[0, 2]), ("CAL_MAG0_ZODIAG", S[1, 2])]
-    return "\n".join(header + [f"1\t1\t{name}\t{_number(value)}\t9" for name, value in rows]) + "\n"
+    return "\n".join(header + [f"1\t1\t{name}\t{yaml_number(value)}\t9" for name, value in rows]) + "\n"
