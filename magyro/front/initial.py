@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from magyro.front.ellipsoid import calibrated_field
 from magyro.observability.matrix import windowed_increments
 
 DEFAULT_WINDOW_S = 0.1
@@ -105,7 +106,7 @@ def turning_misfit_ratio(session, K, eps, R, h, time_offset_s: float = 0.0) -> f
     (both methods) stays within 1.12; a result that does not explain the
     recording (an EKF that lost track: 3.6 on fast shaking) is far above.
     """
-    field_m = (np.asarray(session.mag) - h) @ np.asarray(R).T
+    field_m = calibrated_field(np.asarray(R), h, session.mag)
     args = (session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field_m)
     best = linear_gyro_estimate(*args, time_offset_s=time_offset_s).residual
     return turning_residual(*args, K, eps, time_offset_s) / best if best > 0 else 1.0

@@ -9,6 +9,7 @@ import numpy as np
 
 from magyro import so3
 from magyro.errors import InputError
+from magyro.front.ellipsoid import calibrated_field
 from magyro.front.findings import RecordingCheck
 from magyro.result.consistency import SplitCheck
 from magyro.result.fit import FilterFit, LeastSquaresFit, fit_from_dict
@@ -79,7 +80,7 @@ class Calibration:
             rates = y @ self.K.T + self.eps_rad_s
         else:
             raise InputError(f"unknown frame '{frame}'; use b (the gyro's) or m (the magnetometer's)")
-        field_m = None if mag is None else (np.asarray(mag, dtype=float) - self.h) @ self.R.T
+        field_m = None if mag is None else calibrated_field(self.R, self.h, np.asarray(mag, dtype=float))
         return rates, field_m
 
     @classmethod

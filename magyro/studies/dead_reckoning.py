@@ -46,6 +46,7 @@ import numpy as np
 
 from magyro import so3
 from magyro.errors import InputError
+from magyro.front.ellipsoid import calibrated_field
 from magyro.result.calibration import Calibration
 from magyro.session import Session
 
@@ -309,7 +310,7 @@ def _pose_mismatch(session: Session, cal: tuple[Calibration, str]) -> dict:
         angle = _end_direction_angle(session.t_acc_s, session.acc_m_s2)
         if angle is not None:
             out["pose_mismatch_acc_deg"] = angle
-    _, mag = cal[0].apply(session.gyro_rad_s[:0], session.mag)
+    mag = calibrated_field(cal[0].R, cal[0].h, session.mag)
     angle = _end_direction_angle(session.t_mag_s, mag)
     if angle is not None:
         out["pose_mismatch_mag_deg"] = angle
