@@ -26,6 +26,12 @@ def hole_steps(t_s: np.ndarray) -> np.ndarray:
     return dt > HOLE_FACTOR * float(np.median(dt))
 
 
+def runs_of_true(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) index of every run of True: holes, cut samples, plateaus, bad windows."""
+    edges = np.diff(np.concatenate([[0], np.asarray(mask).astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
+
+
 def hole_spans_s(t_s: np.ndarray) -> list[tuple[float, float]]:
     """(last sample before, first sample after) of every hole."""
     k = np.flatnonzero(hole_steps(t_s))

@@ -8,10 +8,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from magyro.session import HOLE_FACTOR
+
 SCHEMA = "magyro.recording/1"
 SENSORS = ("gyro", "magnetometer")
 SEVERITIES = ("info", "warning", "error")
-GAP_PERIODS = 5.0                 # an interval longer than this many periods is a gap (a gyro hole)
+GAP_PERIODS = HOLE_FACTOR         # an interval longer than this many periods is a gap: the solve's hole
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,7 @@ from magyro.front.findings import GAP_PERIODS, Finding, RecordingCheck
 from magyro.front.recording import inspect
 from magyro.front.signals import SOLVE_LAG_SEARCH_S
 from magyro.options import Repairs
-from magyro.session import HOLE_FACTOR, Session
+from magyro.session import HOLE_FACTOR, Session, runs_of_true
 
 
 def repair_recording(session: Session, repairs: Repairs | None = None) -> tuple[Session, RecordingCheck]:
@@ -89,12 +89,11 @@ def widened_to_holes(cut: np.ndarray) -> np.ndarray:
     every integration sees and never crosses: a plateau of 2 samples cut alone would be bridged by
     interpolating rates the gyro could not measure."""
     need = int(np.ceil(HOLE_FACTOR)) + 1
-    edges = np.diff(np.concatenate([[0], cut.astype(np.int8), [0]]))
     wide = cut.copy()
-    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
-        short = need - (b - a)
+    for a, last in runs_of_true(cut):
+        short = need - (last + 1 - a)
         if short > 0:
-            wide[max(a - short // 2, 0): min(b + short - short // 2, len(cut))] = True
+            wide[max(a - short // 2, 0): min(last + 1 + short - short // 2, len(cut))] = True
     return wide
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from magyro.front.findings import Finding
+from magyro.session import runs_of_true
 
 SAT_MIN_DEG_S = 30.0              # nobody's full scale is below this
 SAT_MIN_SAMPLES = 3
@@ -38,12 +39,7 @@ def saturation(t: np.ndarray, gyro: np.ndarray) -> tuple[np.ndarray, list]:
             n_at = int(at.sum())
             if n_at < SAT_MIN_SAMPLES:
                 continue
-            edges = np.diff(at.astype(np.int8))
-            begin, end = np.flatnonzero(edges == 1) + 1, np.flatnonzero(edges == -1)
-            if at[0]:
-                begin = np.insert(begin, 0, 0)
-            if at[-1]:
-                end = np.append(end, len(x) - 1)
+            begin, end = (np.array(v, dtype=int) for v in zip(*runs_of_true(at)))
             steps = np.concatenate([np.abs(x[begin[begin > 0]] - x[begin[begin > 0] - 1]),
                                     np.abs(x[end[end < len(x) - 1] + 1] - x[end[end < len(x) - 1]])])
             steep = bool(len(steps) and steps.max() > SAT_STEEP_FRACTION * extreme)

@@ -14,13 +14,13 @@ from magyro.nls.grid import Grid
 from magyro.nls.information import Reduced, propagate
 from magyro.nls.method import NLS
 from magyro.nls.problem import N_GLOBAL, JointProblem
-from magyro.nls.solve import Solution, residual_matrix, runs_of_true
+from magyro.nls.solve import Solution, residual_matrix
 from magyro.observability.gate import ObservabilityAnalysis
 from magyro.result.calibration import Calibration
 from magyro.result.fit import FieldChange, LeastSquaresFit, SuspectWindow
 from magyro.result.parts import Excitation, NoiseReport, RestCheck, SolverReport
 from magyro.result.reported import axis_mapping_warning, qr_split, std_from_covariance
-from magyro.session import Session
+from magyro.session import Session, runs_of_true
 
 SUSPECT_WINDOW_S = 1.0
 SUSPECT_FACTOR = 5.0            # BROAD: undisturbed trials reach 3.6x, a magnet beside the path 7.5x

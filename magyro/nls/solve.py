@@ -24,7 +24,7 @@ from magyro.options import Options
 from magyro.observability.gate import unexcited_directions
 from magyro.nls.problem import N_GLOBAL, TIME_OFFSET_SCALE_S, JointProblem, Linearisation
 from magyro.result.reported import qr_split
-from magyro.session import HOLE_FACTOR, Session, hole_steps
+from magyro.session import HOLE_FACTOR, Session, hole_steps, runs_of_true
 
 NODE_RATE_HZ = 25.0   # nodes per second: strides 1, 2 and 4 at 100 Hz give the same estimates and std to 1e-6
 MAX_PASSES = 3
@@ -86,12 +86,6 @@ def aligned_stretches(C_nodes: np.ndarray, stretch: np.ndarray, in_hole: np.ndar
         share = (t_node_s[a : b + 1] - t_node_s[max(a - 1, 0)]) / (t_node_s[min(b + 1, len(C) - 1)] - t_node_s[max(a - 1, 0)])
         C[a : b + 1] = before @ so3.exp_so3(share[:, None] * so3.log_so3(before.T @ after))
     return C, m_i
-
-
-def runs_of_true(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(first, last) index of every run of True."""
-    edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
 
 
 def initial_field(C_nodes, field_m_nodes, seconds_n: int = 100) -> np.ndarray:
