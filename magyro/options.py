@@ -39,7 +39,7 @@ class Repairs:
 
     @classmethod
     def none(cls) -> "Repairs":
-        return cls(False, False, False, False, False)
+        return cls(**dict.fromkeys(cls.NAMES.values(), False))
 
     NAMES = {"restamp": "restamp_bursts", "held": "drop_held", "saturation": "cut_saturation", "spikes": "drop_spikes",
              "clocks": "align_clocks"}
