@@ -91,7 +91,8 @@ def add_split_check(cal: Calibration, session: Session, options: Options, method
     from magyro.result import consistency
 
     moving = moving_session(session, options)[0]
-    report = consistency.split_check(moving, cal, replace(options, split_check=False), method.calibrate)
+    halves = replace(method, trajectory=False) if getattr(method, "trajectory", False) else method  # no attitudes kept
+    report = consistency.split_check(moving, cal, replace(options, split_check=False), halves.calibrate)
     cal.consistency = report
     warning = consistency.split_warning(report)
     if warning:
@@ -109,21 +110,25 @@ def observe(session: Session, options: Options | None = None, targets=None, meth
 
 def solve_file(path, options: Options | None = None, method: str = "nls", method_knobs: dict | None = None, *,
                gyro_unit: str | None = None, mag_unit: str | None = None, output=None, history=None,
-               history_plot=None) -> Calibration:
-    """`magyro solve`: load a session file, calibrate it, write the JSON (and the EKF's history) when asked.
+               history_plot=None, trajectory=None) -> Calibration:
+    """`magyro solve`: load a session file, calibrate it, write the JSON (and the EKF's history, or the least
+    squares' attitude trajectory as Parquet, `magyro.result.trajectory`) when asked.
 
     `method_knobs` are the method's own settings; those left None keep their
     defaults, and those of another method are ignored (the CLI offers the
     least squares' knobs whatever the method).
     """
     from magyro.io import check_outputs
-    check_outputs([path], [output, history, history_plot])  # before any work: no input overwritten, all writable
+    check_outputs([path], [output, history, history_plot, trajectory])  # before any work: no input overwritten, all writable
     from magyro.io import load_session, write_text_atomically
 
     wants_history = history is not None or history_plot is not None
     if method == "nls" and wants_history:
         raise InputError("--history and --history-plot need --method ekf (the least squares has no estimate over time)")
-    chosen = method_named(method, **nls_knobs(method, method_knobs or {}))
+    if method != "nls" and trajectory is not None:
+        raise InputError("--trajectory needs --method nls (the attitude trajectory is a decision variable of the least squares)")
+    knobs = {**nls_knobs(method, method_knobs or {}), **({"trajectory": True} if trajectory is not None else {})}
+    chosen = method_named(method, **knobs)
     options = options or Options()
     if options.split_check and method != "nls":
         raise InputError("--split-check needs --method nls (it compares two least-squares solves)")
@@ -135,6 +140,8 @@ def solve_file(path, options: Options | None = None, method: str = "nls", method
         cal = calibrate(session, options, chosen)
     if output is not None:
         write_text_atomically(output, cal.to_json() + "\n")
+    if trajectory is not None:
+        cal.trajectory.write_parquet(trajectory, source=str(path))
     return cal
 
 

@@ -77,6 +77,7 @@ def solve(
     method: str = typer.Option("nls", "--method", help="nls (the joint least squares) or ekf (the paper's two steps and error-state EKF)."),
     history: Optional[Path] = typer.Option(None, "--history", help="--method ekf: write K, bias, m^i and their 1-sigma over time (Parquet)."),
     history_plot: Optional[Path] = typer.Option(None, "--history-plot", help="--method ekf: plot them like the paper's Fig. 3/6/7 (needs magyro[plot])."),
+    trajectory: Optional[Path] = typer.Option(None, "--trajectory", help="--method nls: write the solved attitude at the nodes (quaternion C_m_i and its std) and the calibrated field (Parquet)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
 ):
     """The joint calibration: magnetometer ellipsoid, gyro K_g, bias, misalignment, field, attitude.
@@ -92,11 +93,14 @@ def solve(
                                         trim_rests=not keep_rests, split_check=split_check, max_std=bounds,
                                         repairs=Repairs.without(no_repair or []))
         cal = solve_file(session, options, method, {"stride": stride, "loss": loss}, gyro_unit=gyro_unit,
-                         mag_unit=mag_unit, output=output, history=history, history_plot=history_plot)
+                         mag_unit=mag_unit, output=output, history=history, history_plot=history_plot,
+                         trajectory=trajectory)
         if not quiet:
             typer.echo(cal.table())
             if output is not None:
                 typer.echo(f"calibration written to {output}")
+            if trajectory is not None:
+                typer.echo(f"attitude trajectory ({len(cal.trajectory.t_s)} nodes) written to {trajectory}")
 
     run_guarded(action)
 

@@ -108,3 +108,45 @@ def predicted_std(prep: Prepared, options: Options | None = None, method: NLS | 
     grid, lin, problem = build_problem(prep, options, method, search_lag=False)
     p = problem_parameters(problem, prep, lin, prep.sigma_mag, lin.time_offset_s)
     return information_std(problem, lin, p)
+
+
+def attitude_covariance_blocks(red: Reduced) -> np.ndarray:
+    """(N-1, 3, 3): the marginal covariance of each node's attitude correction phi_n, the calibration's
+    uncertainty included: the diagonal blocks of D^-1 + (D^-1 H_pt) Sigma_theta (D^-1 H_pt)^T."""
+    A, B = tridiagonal_blocks(red.D)
+    inner = block_tridiagonal_inverse_diagonal(A, B)
+    W = red.Dinv_Hpt.reshape(len(A), 3, -1)
+    return inner + np.einsum("nia,ab,njb->nij", W, np.linalg.inv(red.information), W)
+
+
+def tridiagonal_blocks(D: ca.DM) -> tuple[np.ndarray, np.ndarray]:
+    """(diagonal 3x3 blocks (n, 3, 3), upper off-diagonal blocks D[k, k+1] (n-1, 3, 3)) of a sparse
+    block-tridiagonal matrix, read from its nonzeros (no dense matrix)."""
+    rows, cols = (np.asarray(v) for v in D.sparsity().get_triplet())
+    values = np.array(D.nonzeros())
+    n = D.size1() // 3
+    A, B = np.zeros((n, 3, 3)), np.zeros((max(n - 1, 0), 3, 3))
+    on = rows // 3 == cols // 3
+    A[rows[on] // 3, rows[on] % 3, cols[on] % 3] = values[on]
+    up = cols // 3 == rows // 3 + 1
+    B[rows[up] // 3, rows[up] % 3, cols[up] % 3] = values[up]
+    return A, B
+
+
+def block_tridiagonal_inverse_diagonal(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """The diagonal blocks of the inverse of a symmetric positive definite block-tridiagonal matrix
+    (diagonal blocks A, upper blocks B), in O(n): Schur complements forward, then the inverse backward
+    (G_k = S_k^-1 + S_k^-1 B_k G_k+1 B_k^T S_k^-1)."""
+    n = len(A)
+    S_inv = np.empty_like(A)
+    S = A[0]
+    for k in range(n):
+        if k:
+            S = A[k] - B[k - 1].T @ S_inv[k - 1] @ B[k - 1]
+        S_inv[k] = np.linalg.inv(S)
+    G = np.empty_like(A)
+    G[-1] = S_inv[-1]
+    for k in range(n - 2, -1, -1):
+        F = S_inv[k] @ B[k]
+        G[k] = S_inv[k] + F @ G[k + 1] @ F.T
+    return 0.5 * (G + G.transpose(0, 2, 1))

@@ -23,6 +23,7 @@ class NLS:
     loss: str = "l2"                 # "l2" or "huber" on the magnetometer residuals
     huber_threshold: float = 3.0     # in noise sigmas
     reweight_noise: bool = True      # robust variance-component step on the magnetometer noise
+    trajectory: bool = False         # keep the solved attitude at the nodes (Calibration.trajectory)
 
     def __post_init__(self):
         if self.loss not in LOSSES:

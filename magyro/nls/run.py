@@ -6,6 +6,7 @@
        too little is refused (exit 3) before any iteration
     4. the Gauss-Newton decrement check: a solve that could still improve is refused
     5. the marginal information, std and warnings assembled into the result (`magyro.nls.diagnostics`)
+    6. when asked (`NLS(trajectory=True)`), the attitude at the nodes with its std (`magyro.nls.trajectory`)
 """
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ from magyro.nls.information import gauss_newton_decrement, information_std, redu
 from magyro.nls.method import NLS
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.solve import build_problem, problem_parameters, solve_passes
+from magyro.nls.trajectory import attitude_trajectory
 from magyro.observability.gate import accuracy_gate, needs_accuracy_check
 from magyro.options import Options
 from magyro.result.calibration import Calibration
@@ -51,6 +53,8 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     sol.stats["gauss_newton_decrement"] = decrement
     cal = assemble(problem, prep, grid, sol, reduced, method, time.perf_counter() - t_start)
     cal.warnings.extend(gate_warnings)
+    if method.trajectory:
+        cal.trajectory = attitude_trajectory(problem, grid, lin, sol.x, reduced, prep.session, cal.R, cal.h)
     return cal
 
 

@@ -13,6 +13,7 @@ from magyro.front.ellipsoid import calibrated_field
 from magyro.front.findings import RecordingCheck
 from magyro.result.consistency import SplitCheck
 from magyro.result.fit import FilterFit, LeastSquaresFit, fit_from_dict
+from magyro.result.trajectory import AttitudeTrajectory
 from magyro.result.parts import (Excitation, NoiseReport, RestCheck, SolverReport, Std, as_list, read_array,
                                  read_number, read_section)
 
@@ -56,6 +57,7 @@ class Calibration:
     warnings: list = field(default_factory=list)
     consistency: SplitCheck | None = None     # the split-half check, when asked for
     recording: RecordingCheck | None = None   # the recording check and what it repaired (magyro.calibrate)
+    trajectory: AttitudeTrajectory | None = None   # the least squares' attitudes, when asked for (not in the JSON)
 
     @property
     def bias_deg_s(self) -> np.ndarray:
