@@ -188,30 +188,32 @@ def import_broad_command(
 
 @import_app.command("csv")
 def import_csv_command(
-    source: Path = typer.Argument(..., help="CSV export: a time column and sensor columns; sensors may sit on separate rows."),
+    sources: List[Path] = typer.Argument(..., help="CSV export(s): one file with a time column and sensor columns, or one file per sensor (gyro, magnetometer, optional accelerometer) merged on time; with --preset also the app's export folder or zip."),
     output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv)."),
-    column_map: Optional[List[str]] = typer.Option(None, "--map", "-m", help="NAME=COLUMN for session names t gx gy gz mx my mz (ax ay az, qw qx qy qz), e.g. -m gx=gyroX; repeat, or comma-separate. Unmapped names are guessed from common headers."),
-    gyro_unit: str = typer.Option(..., "--gyro-unit", help="Unit of the gyro columns: rad/s or deg/s."),
-    mag_unit: str = typer.Option(..., "--mag-unit", help="Unit of the magnetometer columns (kept): uT, nT, G, mG, counts, ..."),
-    time_unit: str = typer.Option("s", "--time-unit", help="Unit of the time column: s, ms, us or ns (times restart at 0)."),
+    preset: Optional[str] = typer.Option(None, "--preset", help="An app's export: sensor-logger or phyphox (files, columns, units and time known; no --gyro-unit/--mag-unit/--map)."),
+    column_map: Optional[List[str]] = typer.Option(None, "--map", "-m", help="NAME=COLUMN for session names t gx gy gz mx my mz (ax ay az, qw qx qy qz), e.g. -m gx=gyroX; with several files NAME=FILE:COLUMN, e.g. -m gx=gyro.csv:x -m t=gyro.csv:time. Repeat, or comma-separate. Unmapped names are guessed from common headers."),
+    gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="Unit of the gyro columns: rad/s or deg/s (needed without --preset)."),
+    mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Unit of the magnetometer columns (kept): uT, nT, G, mG, counts, ... (needed without --preset)."),
+    time_unit: str = typer.Option("s", "--time-unit", help="Unit of the time column(s): s, ms, us or ns (times restart at 0 at the earliest stamp)."),
     acc_unit: str = typer.Option("m/s^2", "--acc-unit", help="Unit of the accelerometer columns: m/s^2, g or mg."),
     delimiter: Optional[str] = typer.Option(None, "--delimiter", help="Column separator (default: detected among , ; tab |)."),
+    skip_rows: int = typer.Option(0, "--skip-rows", min=0, help="Lines to skip right after the header of every file (a units row, a second header row)."),
+    header_line: int = typer.Option(0, "--header-line", min=0, help="Lines before the header of every file (a preamble)."),
     start: Optional[float] = typer.Option(None, "--start", help="Drop samples before this time (s after the first stamp)."),
     end: Optional[float] = typer.Option(None, "--end", help="Drop samples after this time (s)."),
 ):
-    """A phone or logger CSV export, with column and unit mapping, as a session file."""
-    from magyro.io import cut, import_csv, parse_column_map, write_imported
+    """A phone or logger CSV export (one file, or one file per sensor, or an app's export by --preset) as a session file."""
+    from magyro.io.csv_presets import convert_csv
 
     def action():
-        from magyro.io import check_outputs
-        check_outputs([source], [output])  # before any work: the source is never overwritten, the output writable
-        s = import_csv(source, parse_column_map(column_map), gyro_unit=gyro_unit, mag_unit=mag_unit,
-                       time_unit=time_unit, acc_unit=acc_unit, delimiter=delimiter)
-        s = cut(s, start, end)
-        write_imported(s, output)
+        s = convert_csv(sources, output, preset=preset, column_map_items=column_map, gyro_unit=gyro_unit,
+                        mag_unit=mag_unit, time_unit=time_unit, acc_unit=acc_unit, delimiter=delimiter,
+                        skip_rows=skip_rows, header_line=header_line, start_s=start, end_s=end)
         typer.echo(f"session written to {output}: {len(s.t_gyro_s)} gyro samples ({s.gyro_rate_hz:.1f} Hz), "
                    f"{len(s.t_mag_s)} magnetometer samples ({s.mag_rate_hz:.1f} Hz), {s.duration_s:.1f} s; "
                    f"columns {s.metadata['column_map']}")
+        if s.metadata.get("sensor_note"):
+            typer.echo(s.metadata["sensor_note"])
 
     run_guarded(action)
 

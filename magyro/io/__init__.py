@@ -6,7 +6,10 @@
   `magyro.io.columns`.)
 - `import_broad`, `import_broad_movement`, `broad_movement_span`, `convert_broad`: BROAD
   benchmark trials (`magyro.io.broad`). `import_csv`, `guess_column_map`,
-  `parse_column_map`: phone and logger CSV exports (`magyro.io.csv_export`).
+  `parse_column_map`: phone and logger CSV exports (`magyro.io.csv_export`);
+  `import_csv_files`, `parse_file_column_map`: one CSV per sensor merged on time;
+  `import_preset`, `PRESETS`: the Sensor Logger and phyphox exports, `convert_csv`: `magyro import csv`
+  (`magyro.io.csv_presets`).
 - `trim`, `cut`, `decimate`: a session cut in time or rate (`magyro.io.cutting`).
 - `write_text_atomically`, `write_atomically`: outputs that are whole or absent;
   `check_outputs(inputs, outputs)`: before any work, an output that is an input (or another
@@ -33,6 +36,8 @@ _EXPORTS = {
     "import_broad": "broad", "import_broad_movement": "broad", "broad_movement_span": "broad",
     "convert_broad": "broad", "BROAD_CITATION": "broad", "BROAD_LICENSE": "broad",
     "import_csv": "csv_export", "guess_column_map": "csv_export", "parse_column_map": "csv_export",
+    "import_csv_files": "csv_export", "parse_file_column_map": "csv_export",
+    "import_preset": "csv_presets", "PRESETS": "csv_presets", "convert_csv": "csv_presets",
     "import_ulog": "ulog", "convert_ulog": "ulog",
     "import_rosbag": "rosbag", "convert_rosbag": "rosbag",
 }
@@ -42,7 +47,8 @@ __all__ = [  # = list(_EXPORTS), spelled out for linters
     "session_from_table", "MIN_SAMPLES", "MAX_PLAUSIBLE_RATE_RAD_S", "trim", "cut", "decimate",
     "write_text_atomically", "write_atomically", "check_outputs", "import_broad", "import_broad_movement",
     "broad_movement_span", "convert_broad", "BROAD_CITATION", "BROAD_LICENSE", "import_csv",
-    "guess_column_map", "parse_column_map", "import_ulog", "convert_ulog", "import_rosbag", "convert_rosbag",
+    "guess_column_map", "parse_column_map", "import_csv_files", "parse_file_column_map", "import_preset",
+    "PRESETS", "convert_csv", "import_ulog", "convert_ulog", "import_rosbag", "convert_rosbag",
 ]
 
 if TYPE_CHECKING:
@@ -50,7 +56,9 @@ if TYPE_CHECKING:
     from magyro.io.broad import (BROAD_CITATION, BROAD_LICENSE, broad_movement_span, convert_broad, import_broad,
                                  import_broad_movement)
     from magyro.io.checks import MAX_PLAUSIBLE_RATE_RAD_S, MIN_SAMPLES, session_from_table
-    from magyro.io.csv_export import guess_column_map, import_csv, parse_column_map
+    from magyro.io.csv_export import (guess_column_map, import_csv, import_csv_files, parse_column_map,
+                                      parse_file_column_map)
+    from magyro.io.csv_presets import PRESETS, convert_csv, import_preset
     from magyro.io.cutting import cut, decimate, trim
     from magyro.io.session_file import PARQUET_SUFFIXES, load_session, session_table, write_imported, write_session
 
