@@ -404,6 +404,31 @@ def export_command(
     run_guarded(action)
 
 
+@app.command("report")
+def report_command(
+    session: Path = typer.Argument(..., help="The session file the calibration was solved from."),
+    calibration: Path = typer.Argument(..., help="The calibration JSON (magyro solve -o)."),
+    output: Path = typer.Option(..., "-o", "--output", help="The HTML page to write (self-contained: opens with no network)."),
+    split_check: bool = typer.Option(True, "--split-check/--no-split-check", help="Compute the split-half check when the calibration has none (two more solves)."),
+    gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
+    mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress and no verdict on the terminal."),
+):
+    """One HTML page to read or send: the recording check, excitation, calibration with std, residuals, split-half
+    check and dead reckoning, each with a figure and a sentence saying whether it is good (needs magyro[plot])."""
+    from magyro.report import report_file
+
+    def action():
+        say = None if quiet else (lambda message: typer.echo(f"report: {message}", err=True))
+        report = report_file(session, calibration, output, split_check=split_check, gyro_unit=gyro_unit,
+                             mag_unit=mag_unit, progress=say)
+        if not quiet:
+            typer.echo(report.verdict)
+            typer.echo(f"report written to {output}")
+
+    run_guarded(action)
+
+
 def main():
     app()
 

@@ -28,9 +28,16 @@ def require_matplotlib():
 
 def plot_report(report: ObservabilityReport, path) -> None:
     """The figure: field-direction coverage, eigenvalue growth, signal to noise, rates per axis. Written atomically."""
-    Figure = require_matplotlib()
+    require_matplotlib()
     path = Path(path)
     file_format = path.suffix.lstrip(".").lower() or "png"
+    fig = report_figure(report)
+    write_atomically(path, lambda tmp: fig.savefig(tmp, format=file_format, dpi=100))
+
+
+def report_figure(report: ObservabilityReport):
+    """The matplotlib Figure of `plot_report` (not written): coverage, eigenvalue growth, signal to noise, rates."""
+    Figure = require_matplotlib()
     fig = Figure(figsize=(13, 9.5), layout="constrained")
     grid = fig.add_gridspec(3, 2, height_ratios=[1.1, 1.0, 0.9])
     ax_sphere = fig.add_subplot(grid[0, 0])
@@ -102,7 +109,7 @@ def plot_report(report: ObservabilityReport, path) -> None:
     ax_rate.set_ylabel("rate (deg/s)")
     ax_rate.set_title(f"rates per gyro axis ({c.rate_reference})", fontsize=10)
     ax_rate.legend(loc="upper right", fontsize=8)
-    write_atomically(path, lambda tmp: fig.savefig(tmp, format=file_format, dpi=100))
+    return fig
 
 
 def _wrap(text: str, width: int) -> list[str]:

@@ -340,20 +340,29 @@ def _cal_public(cal: tuple[Calibration, str]) -> dict:
 
 def plot_validation(report: ValidationReport, path) -> None:
     """The figure (PNG, PDF or SVG by suffix), written atomically; needs matplotlib."""
+    from magyro.io import write_atomically
+
+    fig = validation_figure(report)
+    path = Path(path)
+    fmt = path.suffix.lower().lstrip(".") or "png"
     try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        write_atomically(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=120))
+    except ValueError as exc:  # unknown format
+        raise InputError(f"{path}: cannot write a figure of this type ({exc}); use .png, .pdf or .svg") from None
+
+
+def validation_figure(report: ValidationReport):
+    """The matplotlib Figure of `plot_validation` (not written): errors against truth, or the attitudes."""
+    try:
+        from matplotlib.figure import Figure
     except ImportError:
         raise InputError("plotting needs matplotlib; install it (pip install 'magyro[plot]' or "
                          "pip install matplotlib)") from None
-    from magyro.io import write_atomically
 
-    path = Path(path)
-    fmt = path.suffix.lower().lstrip(".") or "png"
     colors = {"raw": "tab:red", "calibrated": "tab:blue"}
     if report.mode == "truth":
-        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True, height_ratios=[2, 1])
+        fig = Figure(figsize=(9, 6))
+        ax1, ax2 = fig.subplots(2, 1, sharex=True, height_ratios=[2, 1])
         for name in ESTIMATES:
             s = report.summary[name]
             ax1.plot(report.t_s, report.error_deg[name], color=colors[name], lw=1,
@@ -367,7 +376,8 @@ def plot_validation(report: ValidationReport, path) -> None:
         ax2.set_xlabel("time (s)")
         ax2.grid(alpha=0.3)
     else:
-        fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+        fig = Figure(figsize=(9, 7))
+        axes = fig.subplots(3, 1, sharex=True)
         for i, label in enumerate(("roll", "pitch", "yaw")):
             for name in ESTIMATES:
                 axes[i].plot(report.t_s, report.euler_deg[name][:, i], color=colors[name], lw=1,
@@ -378,9 +388,4 @@ def plot_validation(report: ValidationReport, path) -> None:
         axes[0].legend()
         axes[-1].set_xlabel("time (s)")
     fig.tight_layout()
-    try:
-        write_atomically(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=120))
-    except ValueError as exc:  # unknown format
-        raise InputError(f"{path}: cannot write a figure of this type ({exc}); use .png, .pdf or .svg") from None
-    finally:
-        plt.close(fig)
+    return fig

@@ -1,0 +1,467 @@
+"""The report's six sections: for each, the numbers, one sentence saying what they mean and whether that is
+good (computed from the numbers), a status (good, fair, poor), a figure and the details.
+
+Each `*_section` function takes what it judges and returns a `Section`; `magyro.report.build` calls them in
+order and `magyro.report.html` lays them out.
+"""
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass
+
+import numpy as np
+
+from magyro.report import figures
+
+GOOD, FAIR, POOR = "good", "fair", "poor"
+
+# judgement limits of the calibration section (one sigma): beyond them the parameter is poorly determined
+SCALE_STD_PPM_LIMIT = 2000.0
+BIAS_STD_DEG_S_LIMIT = 0.05
+MISALIGNMENT_STD_DEG_LIMIT = 0.5
+DEAD_RECKONING_GOOD_RATIO = 0.5   # calibrated / raw error at most this: the calibration clearly pays
+
+
+@dataclass
+class Section:
+    key: str                  # the HTML id
+    title: str
+    status: str               # good | fair | poor | "" (not judged)
+    headline: str             # a few words for the summary table
+    sentence: str             # ONE sentence: what it means and whether it is good
+    figure: str | None = None  # data URI of the PNG
+    figure_alt: str = ""
+    details: str = ""         # HTML (tables, lists), already escaped
+    caveat: str = ""          # a short clause for the verdict when the status is not good
+
+
+@dataclass(frozen=True)
+class ParameterRow:
+    group: str                 # scale | nonorth | bias | misalignment
+    axis: str                  # x, y, xy, roll, ...
+    label: str
+    value: float               # in `unit`
+    std: float
+    unit: str
+    split_std: float | None = None
+    rest: float | None = None  # the bias the rests imply
+
+
+def esc(text) -> str:
+    return html.escape(str(text), quote=True)
+
+
+def num(value: float, digits: int = 3) -> str:
+    """A number for prose: `digits` significant figures, no exponent for ordinary sizes."""
+    if value is None or not np.isfinite(value):
+        return "n/a"
+    if value == 0:
+        return "0"
+    magnitude = int(np.floor(np.log10(abs(value))))
+    decimals = max(0, digits - 1 - magnitude)
+    return f"{value:.{decimals}f}"
+
+
+def table(header: list, rows: list, classes: str = "") -> str:
+    """An HTML table; cells are escaped unless given as ("html", text)."""
+    def cell(c, tag):
+        if isinstance(c, tuple) and c and c[0] == "html":
+            return f"<{tag}>{c[1]}</{tag}>"
+        return f"<{tag}>{esc(c)}</{tag}>"
+
+    head = "".join(cell(h, "th") for h in header)
+    body = "".join("<tr>" + "".join(cell(c, "td") for c in row) + "</tr>" for row in rows)
+    return f'<table class="{classes}"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
+
+
+# --------------------------------------------------------------------------- 1. the recording check
+
+
+def recording_section(raw, repaired, check) -> Section:
+    repaired_findings = [f for f in check.findings if f.repaired]
+    open_warnings = [f for f in check.warnings if not f.repaired]
+    rates = ", ".join(f"{name} {s.rate_hz:.1f} Hz" for name, s in check.sensors.items())
+    gaps = sum(s.gaps for s in check.sensors.values())
+    holes = len(check.gyro_holes_s)
+    facts = (f"{rates}, {gaps} gap{'s' * (gaps != 1)}, {holes} gyro hole{'s' * (holes != 1)}; magyro repaired "
+             f"{len(repaired_findings)} finding{'s' * (len(repaired_findings) != 1)}"
+             + (f" ({', '.join(sorted({f'{f.kind} {f.sensor}' for f in repaired_findings}))})"
+                if repaired_findings else ""))
+    if check.errors:
+        status, headline = POOR, f"unusable: {len(check.errors)} error(s)"
+        sentence = (f"The recording is not usable as it is ({check.errors[0].message}): {facts}.")
+    elif open_warnings:
+        status, headline = FAIR, f"usable, {len(open_warnings)} warning(s)"
+        sentence = (f"The recording is usable but {len(open_warnings)} problem{'s' * (len(open_warnings) != 1)} "
+                    f"remain{'s' * (len(open_warnings) == 1)} unrepaired ({', '.join(f.kind for f in open_warnings)}): "
+                    f"{facts}.")
+    else:
+        status, headline = GOOD, "clean" if not repaired_findings else f"clean after {len(repaired_findings)} repair(s)"
+        sentence = f"The recording is clean{' after the repairs' if repaired_findings else ''}: {facts}."
+    rows = [[s.sensor, f"{s.samples:,}", f"{s.rate_hz:.2f}", f"{s.distinct_rate_hz:.2f}", f"{s.jitter_s * 1e3:.3f}",
+             f"{s.start_s:.3f} – {s.end_s:.3f}", f"{100 * s.held_fraction:.1f}", s.gaps,
+             "bursty" if s.bursty else "regular"] for s in check.sensors.values()]
+    details = table(["sensor", "samples", "rate (Hz)", "distinct (Hz)", "jitter (ms)", "span (s)", "held (%)",
+                     "gaps", "clock"], rows, "numbers")
+    if len(check.lag_s) == 2:
+        details += (f"<p>The magnetometer lags the gyro by {check.lag_s[0] * 1e3:.1f} ms at the start and "
+                    f"{check.lag_s[1] * 1e3:.1f} ms at the end.</p>")
+    if check.findings:
+        items = []
+        for f in check.findings:
+            tag = "repaired" if f.repaired else f.severity
+            extra = "".join(f"<div class='sub'><b>{label}:</b> {esc(text)}</div>"
+                            for label, text in (("matters", f.matters), ("fix", f.fix)) if text)
+            items.append(f"<li><span class='tag {esc(tag)}'>{esc(tag)}</span> <b>{esc(f.kind)}</b> "
+                         f"({esc(f.sensor)}): {esc(f.message)}{extra}</li>")
+        details += "<ul class='findings'>" + "".join(items) + "</ul>"
+    else:
+        details += "<p>No findings.</p>"
+    fig = figures.recording_figure(raw, repaired, check)
+    return Section("recording", "1. The recording", status, headline, sentence, figures.png_data_uri(fig),
+                   "sample intervals of the gyro and the magnetometer over time", details)
+
+
+# --------------------------------------------------------------------------- 2. excitation and coverage
+
+
+def excitation_section(report) -> Section:
+    from magyro.observability.plot import report_figure
+
+    c = report.coverage
+    status = {"sufficient": GOOD, "marginal": FAIR}.get(report.verdict, POOR)
+    sentence = (f"The motion excites {report.rank} of the 12 gyro parameters (condition {num(report.condition)}) "
+                f"and sweeps the field over {100 * c.sphere_fraction:.0f} % of the sphere, so the excitation is "
+                f"{report.verdict}: {report.reason.rstrip('.')}.")
+    rows = [["rank", f"{report.rank} of 12"], ["condition number", num(report.condition)],
+            ["field directions covered", f"{100 * c.sphere_fraction:.0f} % ({c.cells_visited}/{c.cells} cells)"],
+            ["angle turned per gyro axis (deg)", ", ".join(f"{a:.0f}" for a in c.angle_turned_deg)],
+            ["peak rate per gyro axis (deg/s)", ", ".join(f"{a:.0f}" for a in c.peak_rate_deg_s)],
+            ["full rank reached at", "never" if report.full_rank_at_s is None else f"{report.full_rank_at_s:.1f} s"],
+            ["well conditioned at", "never" if report.well_conditioned_at_s is None
+             else f"{report.well_conditioned_at_s:.1f} s"]]
+    details = table(["", ""], rows, "keyvalue")
+    if report.weak_directions:
+        details += ("<p><b>Weakest directions:</b></p><ul>"
+                    + "".join(f"<li>{esc(w)}</li>" for w in report.weak_directions[:4]) + "</ul>")
+    if report.advice:
+        details += "<p><b>Advice:</b></p><ul>" + "".join(f"<li>{esc(a)}</li>" for a in report.advice[:3]) + "</ul>"
+    return Section("excitation", "2. Excitation and coverage", status,
+                   f"{report.verdict}, rank {report.rank}/12", sentence,
+                   figures.png_data_uri(report_figure(report), dpi=76),
+                   "field-direction coverage, eigenvalue growth and rates (magyro observe's figure)", details)
+
+
+# --------------------------------------------------------------------------- 3. the calibration
+
+
+SPLIT_NAMES = {"scale": "K_g[{i},{i}]", "bias": "bias_{a}_deg_s", "misalignment": "misalignment_d{a}_deg"}
+
+
+def parameter_rows(cal, check=None) -> list[ParameterRow]:
+    """The gyro parameters in readable units, each with its std (and split-half std, rest bias when known)."""
+    s = cal.std
+    split = check.parameters if check is not None and check.compared else {}
+
+    def split_std(name, scale=1.0):
+        return split[name]["split_std"] * scale if name in split else None
+
+    rows = []
+    for i, a in enumerate("xyz"):
+        rows.append(ParameterRow("scale", a, f"scale factor {a}", 1e6 * (cal.K_g[i, i] - 1.0), 1e6 * s.K_g[i][i],
+                                 "ppm", split_std(f"K_g[{i},{i}]", 1e6)))
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        axis = "xyz"[i] + "xyz"[j]
+        rows.append(ParameterRow("nonorth", axis, f"non-orthogonality {axis} (K_g[{i},{j}])",
+                                 float(np.rad2deg(cal.K_g[i, j])), float(np.rad2deg(s.K_g[i][j])), "deg",
+                                 split_std(f"K_g[{i},{j}]", float(np.rad2deg(1.0)))))
+    rest = cal.rests.bias_deg_s if cal.rests is not None else None
+    for k, a in enumerate("xyz"):
+        rows.append(ParameterRow("bias", a, f"bias {a}", float(cal.bias_deg_s[k]), float(s.bias_deg_s[k]), "deg/s",
+                                 split_std(f"bias_{a}_deg_s"), None if rest is None else float(rest[k])))
+    for k, (a, name) in enumerate(zip("xyz", ("roll", "pitch", "yaw"))):
+        rows.append(ParameterRow("misalignment", name, f"misalignment {name} (C_b_m)", float(cal.euler_deg[k]),
+                                 float(s.misalignment_deg[k]), "deg", split_std(f"misalignment_d{a}_deg")))
+    return rows
+
+
+def calibration_section(cal, check=None) -> Section:
+    rows = parameter_rows(cal, check)
+    by = {g: [r for r in rows if r.group == g] for g in ("scale", "nonorth", "bias", "misalignment")}
+    def sigma(r):   # the honest one-sigma: the split-half one when it is larger
+        return max(r.std, r.split_std or 0.0)
+
+    worst_scale = max(by["scale"], key=sigma)
+    worst_bias = max(by["bias"], key=sigma)
+    worst_mis = max(by["misalignment"], key=sigma)
+    solved = "succeeded" in cal.solver.status.lower() or "acceptable" in cal.solver.status.lower() \
+        or cal.solver.status.lower() in ("converged", "ok", "given")
+    determined = (sigma(worst_scale) <= SCALE_STD_PPM_LIMIT and sigma(worst_bias) <= BIAS_STD_DEG_S_LIMIT
+                  and sigma(worst_mis) <= MISALIGNMENT_STD_DEG_LIMIT)
+    split_larger = any(r.split_std is not None and r.split_std > r.std for r in (worst_scale, worst_bias, worst_mis))
+    status = GOOD if (solved and determined and cal.observability.rank == 12) else FAIR if solved else POOR
+    scales = ", ".join(f"{r.value:+.0f}" for r in by["scale"])
+    biases = ", ".join(f"{r.value:+.3f}" for r in by["bias"])
+    judged = ("all of them well determined" if determined else
+              f"not all of them well determined (limits {SCALE_STD_PPM_LIMIT:g} ppm, {BIAS_STD_DEG_S_LIMIT:g} deg/s, "
+              f"{MISALIGNMENT_STD_DEG_LIMIT:g} deg)")
+    which = "one-sigma (the larger of the reported and the split-half one)" if split_larger else "one-sigma"
+    sentence = (f"The gyro's scale factors are off by {scales} ppm and its bias is {biases} deg/s, {judged}: "
+                f"the largest {which} is {num(sigma(worst_scale), 2)} ppm on scale {worst_scale.axis}, "
+                f"{num(sigma(worst_bias), 2)} deg/s on bias {worst_bias.axis} and {num(sigma(worst_mis), 2)} deg on "
+                f"misalignment {worst_mis.axis}")
+    if cal.rests is not None and cal.rests.seconds > 0:
+        sentence += (f", and the {cal.rests.seconds:.1f} s of rest imply a bias within "
+                     f"{num(float(np.max(np.abs(cal.rests.estimate_minus_rest_deg_s))), 2)} deg/s of the estimate")
+    sentence += f" ({cal.solver.method} {cal.solver.status}, {cal.solver.iterations} iterations)."
+    has_split = any(r.split_std is not None for r in rows)
+    has_rest = any(r.rest is not None for r in rows)
+    header = ["parameter", "estimate", "± 1σ", *(["± 1σ split-half"] if has_split else []),
+              *(["from the rests"] if has_rest else []), "unit"]
+    digits = {"ppm": 0, "deg": 3, "deg/s": 4}
+    body = []
+    for r in rows:
+        d = digits[r.unit]
+        line = [r.label, f"{r.value:+.{d}f}", f"{r.std:.{d}f}"]
+        if has_split:
+            line.append("" if r.split_std is None else f"{r.split_std:.{d}f}")
+        if has_rest:
+            line.append("" if r.rest is None else f"{r.rest:+.{d}f}")
+        body.append(line + [r.unit])
+    details = table(header, body, "numbers params")
+    mag = [["hard iron h (" + cal.mag_unit + ")", ", ".join(f"{v:+.4g} ± {e:.2g}" for v, e in zip(cal.h, cal.std.h))],
+           ["field strength (" + cal.mag_unit + ")", f"{1.0 / np.cbrt(np.prod(np.diag(cal.R))):.4g}"],
+           ["R diagonal", ", ".join(f"{cal.R[i, i]:.5g} ± {cal.std.R[i][i]:.2g}" for i in range(3))]]
+    if cal.time_offset_estimated:
+        mag.append(["magnetometer lag behind the gyro",
+                    f"{1e3 * cal.time_offset_s:+.2f} ± {1e3 * cal.std.time_offset_s:.2f} ms"])
+    if cal.noise is not None:
+        mag.append(["gyro noise density", f"{np.rad2deg(cal.noise.gyro_density_rad_s_sqrt_hz):.3g} deg/s/√Hz"])
+        mag.append(["magnetometer noise (" + cal.mag_unit + ")", f"{cal.noise.mag_std:.3g}"])
+    mag.append(["observability", f"rank {cal.observability.rank} of 12, condition {num(cal.observability.condition)}"])
+    mag.append(["solver", f"{cal.solver.method} {cal.solver.status}, {cal.solver.iterations} iterations, "
+                          f"{cal.solver.seconds:.2f} s"])
+    details += "<h3>Magnetometer and solve</h3>" + table(["", ""], mag, "keyvalue")
+    details += ("<p class='small'>Scale factors are K_g's diagonal minus 1 in parts per million; non-orthogonality "
+                "is K_g's off-diagonal as an angle; the misalignment is C_b_m (gyro to magnetometer frame) as roll, "
+                "pitch, yaw. Model: ω = K_g y + ε_b.</p>")
+    fig = figures.calibration_figure(rows)
+    caveat = ("" if status == GOOD else
+              f"scale {worst_scale.axis} is known only to ±{num(sigma(worst_scale), 2)} ppm" if determined is False
+              else f"the solver ended {cal.solver.status}")
+    return Section("calibration", "3. The calibration", status,
+                   f"scale σ ≤ {num(sigma(worst_scale), 2)} ppm, bias σ ≤ {num(sigma(worst_bias), 2)} deg/s",
+                   sentence, figures.png_data_uri(fig), "each gyro parameter with its one-sigma", details, caveat)
+
+
+# --------------------------------------------------------------------------- 4. the residuals
+
+
+@dataclass(frozen=True)
+class Windows:
+    window_s: float
+    t_s: dict                  # raw | calibrated -> window centre times (s)
+    misfit_deg: dict           # raw | calibrated -> per-window misfit norm (deg)
+    rms_deg: dict              # raw | calibrated -> turning_residual (RMS per component, deg)
+
+
+@dataclass(frozen=True)
+class FieldMagnitude:
+    t_s: np.ndarray
+    magnitude: np.ndarray
+
+
+def window_misfits(moving, field_m, K, eps, time_offset_s: float, window_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """(window centre times, |misfit| of eq. 13 per window in rad) for a gyro calibration K, eps."""
+    from magyro.observability.matrix import field_on_gyro_times, windowed_increments
+    from magyro.session import hole_spans_s, overlaps_a_hole
+
+    t_mag = np.asarray(moving.t_mag_s) - time_offset_s
+    dm, int_M = windowed_increments(moving.t_gyro_s, moving.gyro_rad_s, t_mag, field_m, window_s)
+    theta = np.concatenate([np.asarray(K, dtype=float).reshape(-1, order="F"), np.asarray(eps, dtype=float)])
+    misfit = np.linalg.norm(int_M @ theta - dm, axis=1)
+    # the windows' times, as windowed_increments chooses them
+    inside, _ = field_on_gyro_times(moving.t_gyro_s, t_mag, field_m)
+    t = moving.t_gyro_s[inside]
+    step = max(1, int(round(window_s * (len(t_mag) - 1) / (t_mag[-1] - t_mag[0]))))
+    ends = np.arange(0, len(t_mag), step)
+    ends = ends[(t_mag[ends] >= t[0]) & (t_mag[ends] <= t[-1])]
+    t_end = t_mag[ends]
+    whole = ~overlaps_a_hole(t_end[:-1], t_end[1:], hole_spans_s(t) + hole_spans_s(t_mag))
+    centres = (0.5 * (t_end[:-1] + t_end[1:]))[whole]
+    if len(centres) != len(misfit):  # should not happen; keep the figure honest about order at least
+        centres = np.linspace(moving.t_mag_s[0], moving.t_mag_s[-1], len(misfit))
+    return centres, misfit
+
+
+PLOT_WINDOW_S = 1.0   # the figure's windows: over 0.1 s the magnetometer's noise hides the gyro's errors
+
+
+def residual_section(moving, cal) -> Section:
+    from magyro.api import MAX_TURNING_MISFIT
+    from magyro.front.ellipsoid import calibrated_field
+    from magyro.front.initial import DEFAULT_WINDOW_S, linear_gyro_estimate, turning_residual
+    from magyro.nls.diagnostics import FIELD_WINDOW_S, MAX_FIELD_CHANGE, field_magnitude_change
+
+    field_m = calibrated_field(cal.R, cal.h, moving.mag)
+    args = (moving.t_gyro_s, moving.gyro_rad_s, moving.t_mag_s, field_m)
+    gyros = {"raw": (np.eye(3), np.zeros(3), 0.0), "calibrated": (cal.K, cal.eps_rad_s, cal.time_offset_s)}
+
+    def misfits(window_s):
+        rms = {name: float(np.rad2deg(turning_residual(*args, K, eps, offset, window_s)))
+               for name, (K, eps, offset) in gyros.items()}
+        best = float(np.rad2deg(linear_gyro_estimate(*args, window_s=window_s,
+                                                     time_offset_s=cal.time_offset_s).residual))
+        return rms, best
+
+    solve_rms, solve_best = misfits(DEFAULT_WINDOW_S)
+    plot_rms, plot_best = misfits(PLOT_WINDOW_S)
+    times, misfit = {}, {}
+    for name, (K, eps, offset) in gyros.items():   # the lag moves the windows: each gyro has its own times
+        times[name], m = window_misfits(moving, field_m, K, eps, offset, PLOT_WINDOW_S)
+        misfit[name] = np.rad2deg(m)
+    windows = Windows(PLOT_WINDOW_S, times, misfit, plot_rms)
+    magnitude = np.linalg.norm(field_m, axis=1)
+    change = field_magnitude_change(moving, cal.R, cal.h)
+    ratio = solve_rms["calibrated"] / solve_best if solve_best > 0 else 1.0
+    reduction = 1.0 - plot_rms["calibrated"] / plot_rms["raw"] if plot_rms["raw"] > 0 else float("nan")
+    field_ok = change.max_fraction <= MAX_FIELD_CHANGE
+    fits = ratio <= MAX_TURNING_MISFIT
+    status = GOOD if field_ok and fits else POOR if not fits else FAIR
+    sentence = (f"Over {PLOT_WINDOW_S:g} s windows the calibrated gyro predicts the field's turning with an RMS "
+                f"misfit of {num(plot_rms['calibrated'], 2)} deg against {num(plot_rms['raw'], 2)} deg raw "
+                f"({100 * reduction:.0f} % less; the best linear fit reaches {num(plot_best, 2)} deg, the rest is "
+                f"magnetometer noise), and the calibrated field magnitude, averaged over "
+                f"{FIELD_WINDOW_S:g} s, stays within {100 * change.max_fraction:.1f} % of 1 (worst at "
+                f"{change.at_s:.1f} s), "
+                + ("inside the 5 % a homogeneous field allows: the model fits the recording."
+                   if field_ok and fits else
+                   f"beyond the {100 * MAX_FIELD_CHANGE:.0f} % a homogeneous field allows: iron or a magnet near the "
+                   "path, or a magnetometer that is not linear." if not field_ok else
+                   f"but the calibrated gyro fits {ratio:.1f}x worse than the best linear fit: the result does not "
+                   "explain the recording."))
+    deviation = np.abs(magnitude - 1.0)
+    worst = int(np.argmax(deviation))
+    rows = [[f"turning misfit over {1e3 * DEFAULT_WINDOW_S:.0f} ms windows (the solve's): raw, calibrated, best "
+             "linear fit", f"{solve_rms['raw']:.3f}, {solve_rms['calibrated']:.3f}, {solve_best:.3f} deg RMS"],
+            [f"turning misfit over {PLOT_WINDOW_S:g} s windows: raw, calibrated, best linear fit",
+             f"{plot_rms['raw']:.3f}, {plot_rms['calibrated']:.3f}, {plot_best:.3f} deg RMS"],
+            ["calibrated misfit over the best linear fit's (a converged solve stays within 1.12)", f"{ratio:.3f}"],
+            [f"field magnitude |R (y − h)| over {FIELD_WINDOW_S:g} s: median, largest deviation from 1",
+             f"{100 * change.median_fraction:.2f} %, {100 * change.max_fraction:.2f} % at {change.at_s:.1f} s"],
+            ["field magnitude, largest single-sample deviation from 1",
+             f"{100 * deviation[worst]:.2f} % at {moving.t_mag_s[worst]:.2f} s"]]
+    fit = cal.fit
+    if fit is not None and hasattr(fit, "mag_rms_normalised"):
+        rows.append(["whitened residual RMS: magnetometer, gyro (1 = the noise level assumed)",
+                     f"{fit.mag_rms_normalised:.3f}, {fit.gyro_rms_normalised:.3f}"])
+        if fit.suspect_segments:
+            rows.append(["suspect windows (magnetometer fits far worse than typical)",
+                         "; ".join(f"{w.t0_s:.1f}–{w.t1_s:.1f} s ({w.residual_vs_typical:.1f}×)"
+                                   for w in fit.suspect_segments)])
+    details = table(["", ""], rows, "keyvalue")
+    details += (f"<p class='small'>Computed on the moving part of the session ({moving.t_gyro_s[0]:.1f}–"
+                f"{moving.t_gyro_s[-1]:.1f} s), as the solve sees it, on the calibrated field R (y − h). A window's "
+                "misfit is the norm of the field's change the gyro predicts (paper eq. 13) minus the change "
+                "measured; the raw gyro is K = I, ε = 0 with no magnetometer lag.</p>")
+    fig = figures.residual_figure(windows, FieldMagnitude(moving.t_mag_s, magnitude), MAX_FIELD_CHANGE,
+                                  FIELD_WINDOW_S)
+    return Section("residuals", "4. The fit's residuals over time", status,
+                   f"misfit −{100 * reduction:.0f} % vs raw, field within {100 * change.max_fraction:.1f} %",
+                   sentence, figures.png_data_uri(fig), "turning misfit and field magnitude over time", details)
+
+
+# --------------------------------------------------------------------------- 5. the split-half check
+
+
+SPLIT_LABELS = {"K_g[0,0]": "scale x", "K_g[1,1]": "scale y", "K_g[2,2]": "scale z", "K_g[0,1]": "non-orth xy",
+                "K_g[0,2]": "non-orth xz", "K_g[1,2]": "non-orth yz", "bias_x_deg_s": "bias x",
+                "bias_y_deg_s": "bias y", "bias_z_deg_s": "bias z", "misalignment_dx_deg": "misalign. x",
+                "misalignment_dy_deg": "misalign. y", "misalignment_dz_deg": "misalign. z"}
+
+
+def split_section(check, computed_here: bool, why_not: str | None = None) -> Section:
+    title = "5. The split-half check"
+    if check is None:
+        return Section("split", title, "", "not run", f"The split-half check was not run: {why_not}.")
+    spans = "; ".join(f"{a:.1f}–{b:.1f} s" for a, b in check.spans_s)
+    if not check.compared:
+        return Section("split", title, FAIR, "a half failed",
+                       f"The split-half check could not compare the halves ({spans}): "
+                       f"{'; '.join(map(str, check.failed))}.")
+    label = SPLIT_LABELS.get(check.worst, check.worst)
+    ok = check.rms_z <= check.max_rms_z and check.max_abs_z <= check.max_half_z
+    if ok:
+        sentence = (f"The two halves of the recording ({spans}) agree within their std: the RMS z is "
+                    f"{check.rms_z:.2f} and the largest |z| {check.max_abs_z:.1f} ({label}), so the reported "
+                    "one-sigma can be trusted.")
+    else:
+        sentence = (f"The two halves of the recording ({spans}) disagree by {check.rms_z:.1f} σ RMS, at most "
+                    f"{check.max_abs_z:.1f} σ on {label}: the model does not hold throughout, so the reported std "
+                    f"understates the error by about {max(check.rms_z, 1.0):.1f}× and the split-half std is the "
+                    "more honest one.")
+    rows = []
+    for name, p in check.parameters.items():
+        scale = 1e6 if name in ("K_g[0,0]", "K_g[1,1]", "K_g[2,2]") else float(np.rad2deg(1.0)) \
+            if name.startswith("K_g") else 1.0
+        unit = "ppm" if scale == 1e6 else "deg" if name.startswith(("K_g", "misalignment")) else "deg/s"
+        offset = 1e6 if scale == 1e6 else 0.0
+        d = 0 if unit == "ppm" else 4
+
+        def f(v, sign=True):
+            return f"{v:+.{d}f}" if sign else f"{v:.{d}f}"
+
+        rows.append([SPLIT_LABELS.get(name, name), f(p["first"] * scale - offset), f(p["second"] * scale - offset),
+                     f(p["difference"] * scale), f(p["reported_std"] * scale, False), f(p["split_std"] * scale, False),
+                     f"{p['z']:+.2f}", unit])
+    details = table(["parameter", "first half", "second half", "difference", "reported σ", "split-half σ", "z",
+                     "unit"], rows, "numbers")
+    details += ("<p class='small'>z is the half-difference over the std of that difference; when the model holds it "
+                "is about unit normal. Misalignment here is the rotation vector of each half's C_b_m against the "
+                "full session's."
+                + (" This check was computed for this report (it solves the least squares twice, once per half)."
+                   if computed_here else " This check was carried in the calibration file.") + "</p>")
+    fig = figures.split_figure(check, SPLIT_LABELS)
+    caveat = "" if ok else (f"the two halves of the recording disagree by {check.rms_z:.1f} σ RMS, so the reported "
+                            f"std understates the error by about {max(check.rms_z, 1.0):.1f}×")
+    return Section("split", title, GOOD if ok else FAIR, f"RMS z {check.rms_z:.2f}, max {check.max_abs_z:.1f}",
+                   sentence, figures.png_data_uri(fig), "each gyro parameter's split-half z", details, caveat)
+
+
+# --------------------------------------------------------------------------- 6. dead reckoning
+
+
+def dead_reckoning_section(report) -> Section:
+    from magyro.studies.dead_reckoning import validation_figure
+
+    raw, cal = report.summary["raw"], report.summary["calibrated"]
+    ratio = report.ratio
+    removed = 100 * (1.0 - ratio)
+    if report.mode == "truth":
+        what = (f"Against the optical truth the calibrated gyro dead-reckons with {num(cal['rms_deg'], 2)} deg RMS "
+                f"error ({num(cal['final_deg'], 2)} deg at the end) against {num(raw['rms_deg'], 2)} deg raw "
+                f"({num(raw['final_deg'], 2)} deg at the end)")
+        rows = [[f"{name} gyro", f"{s['rms_deg']:.3f}", f"{s['max_deg']:.3f}", f"{s['final_deg']:.3f}"]
+                for name, s in report.summary.items()]
+        details = table(["", "RMS (deg)", "max (deg)", "final (deg)"], rows, "numbers")
+    else:
+        what = (f"The calibrated gyro closes the loop with {num(cal['closure_deg'], 2)} deg of drift at the end "
+                f"against {num(raw['closure_deg'], 2)} deg raw")
+        rows = [[f"{name} gyro", f"{s['closure_deg']:.3f}", f"{s['closure_deg_per_min']:.3f}"]
+                for name, s in report.summary.items()]
+        details = table(["", "closure drift (deg)", "per minute (deg)"], rows, "numbers")
+    if not np.isfinite(ratio):
+        status, verdict = "", "there is no drift to compare"
+    elif ratio <= DEAD_RECKONING_GOOD_RATIO:
+        status, verdict = GOOD, f"the calibration removes {removed:.0f} % of the error"
+    elif ratio < 1.0:
+        status, verdict = FAIR, f"the calibration removes only {removed:.0f} % of the error"
+    else:
+        status, verdict = POOR, f"the calibration makes it {ratio:.1f}× worse"
+    sentence = f"{what}: {verdict}."
+    if report.notes:
+        details += "<ul>" + "".join(f"<li>{esc(n)}</li>" for n in report.notes) + "</ul>"
+    headline = f"{'−' if removed >= 0 else '+'}{abs(removed):.0f} % error" if np.isfinite(ratio) else "n/a"
+    return Section("dead-reckoning", "6. Dead reckoning, raw against calibrated", status, headline, sentence,
+                   figures.png_data_uri(validation_figure(report)),
+                   "dead-reckoning error of the raw and the calibrated gyro", details)

@@ -1,0 +1,188 @@
+"""`magyro report`: one self-contained HTML page judging a calibration (issue 12, item 5).
+
+The report of the shipped real session (BROAD trial 02) is built once; the plain tests read its HTML, the
+browser test opens it in Debian's headless Chromium with the network blocked (skipped, saying how to install
+it, when /usr/bin/chromium or the playwright package is absent; playwright never downloads a browser here).
+"""
+from __future__ import annotations
+
+import html
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+import magyro
+from magyro.errors import InputError
+from magyro.io import load_session
+from magyro.report import report_file
+from magyro.studies.dead_reckoning import validate
+
+pytest.importorskip("matplotlib")
+
+DATA = Path(__file__).resolve().parent.parent / "data"
+SESSION = DATA / "broad-02.parquet"
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+                 "--disable-sync", "--no-first-run"]
+SECTIONS = ("recording", "excitation", "calibration", "residuals", "split", "dead-reckoning")
+MAX_BYTES = 5 * 1024 * 1024
+MAX_LOAD_MS = 2000.0
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    """(calibration, its JSON path, the report, the HTML path): one solve, then the report (two more solves for
+    the split-half check, which the calibration does not carry)."""
+    folder = tmp_path_factory.mktemp("report")
+    cal = magyro.calibrate(load_session(SESSION))
+    cal_path = folder / "cal.json"
+    cal.to_json(cal_path)
+    out = folder / "report.html"
+    steps = []
+    report = report_file(SESSION, cal_path, out, progress=steps.append)
+    assert steps and any("split-half" in s for s in steps)
+    return cal, cal_path, report, out
+
+
+def test_every_section_says_what_the_numbers_mean(built):
+    cal, _, report, out = built
+    page = out.read_text(encoding="utf-8")
+    assert page == report.html and page.startswith("<!DOCTYPE html>")
+    assert [s.key for s in report.sections] == list(SECTIONS)
+    for section in report.sections:
+        assert f"id='{section.key}'" in page
+        assert section.status in ("good", "fair", "poor")
+        assert html.escape(section.sentence) in page
+        assert section.sentence.count(". ") == 0 and section.sentence.endswith(".")   # ONE sentence
+    by = {s.key: s for s in report.sections}
+    # the calibration's own numbers, as the calibration has them
+    for b in cal.bias_deg_s:
+        assert f"{b:+.3f}" in by["calibration"].sentence
+        assert f"{b:+.4f}" in page                      # the table
+    for i in range(3):
+        assert f"{1e6 * (cal.K_g[i, i] - 1):+.0f}" in by["calibration"].sentence
+    # dead reckoning: the share of the error the calibration removes, from validate's own numbers
+    v = validate(load_session(SESSION), cal)
+    assert f"{100 * (1 - v.ratio):.0f} %" in by["dead-reckoning"].sentence
+    assert f"{v.summary['raw']['rms_deg']:.2g}" in by["dead-reckoning"].sentence
+    # the split-half check was computed here and says so; its RMS z is in its sentence
+    assert cal.consistency is None and "computed for this report" in page
+    assert re.search(r"\d\.\d+ ?σ RMS|RMS z is \d\.\d\d", by["split"].sentence)
+    # the top: name, version, verdict, the calibration's warnings
+    assert "02_undisturbed_slow_rotation_B" in page and f"magyro {magyro.__version__}" in page
+    assert html.escape(report.verdict) in page
+    for w in cal.warnings:
+        assert html.escape(w) in page
+
+
+def test_the_page_is_self_contained(built):
+    _, _, report, out = built
+    page = out.read_text(encoding="utf-8")
+    assert out.stat().st_size < MAX_BYTES
+    assert "<script" not in page.lower() and "<link" not in page.lower() and "@import" not in page
+    assert not re.search(r"""(src|href)\s*=\s*['"](?!data:|#)""", page)   # only data URIs and anchors
+    assert not re.search(r"url\(\s*['\"]?(?!data:)", page)
+    assert page.count("src='data:image/png;base64,") == len(SECTIONS)
+
+
+def test_bad_input_is_refused_before_any_output(built, tmp_path):
+    _, cal_path, _, _ = built
+    out = tmp_path / "report.html"
+    with pytest.raises(InputError, match="no such file"):
+        report_file(SESSION, tmp_path / "missing.json", out)
+    other = tmp_path / "validation.json"
+    other.write_text(json.dumps({"schema": "magyro.validation/1"}))
+    with pytest.raises(InputError, match="dead-reckoning report.*not a calibration"):
+        report_file(SESSION, other, out)
+    unknown = tmp_path / "unknown.json"
+    unknown.write_text(json.dumps({"schema": "someone.else/3", "K": [1, 2, 3]}))
+    with pytest.raises(InputError, match="not a magyro calibration"):
+        report_file(SESSION, unknown, out)
+    with pytest.raises(InputError, match="missing-session"):
+        report_file(tmp_path / "missing-session.parquet", cal_path, out)
+    with pytest.raises(InputError, match="is the input"):
+        report_file(SESSION, cal_path, cal_path)          # never overwrite an input
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["unknown.json", "validation.json"]
+
+
+def browser_or_skip():
+    """playwright's sync API, or a skip saying what is missing and how to install it."""
+    if not CHROMIUM.exists():
+        pytest.skip(f"{CHROMIUM} is absent: install Debian's Chromium (apt-get install chromium) to run the "
+                    "report's browser test")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        pytest.skip("the playwright package is absent: pip install playwright (the test uses /usr/bin/chromium; "
+                    "no `playwright install` is needed)")
+    return sync_playwright
+
+
+def test_the_page_opens_offline_in_a_browser(built):
+    sync_playwright = browser_or_skip()
+    _, _, report, out = built
+    requests, blocked, console_errors, page_errors = [], [], [], []
+
+    def route(r):
+        if r.request.url.startswith(("file:", "data:")):
+            r.continue_()
+        else:
+            blocked.append(r.request.url)
+            r.abort()
+
+    with sync_playwright() as p:
+        try:
+            browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        except Exception as exc:  # a Chromium that does not start here (missing libraries, ...)
+            pytest.skip(f"{CHROMIUM} did not start ({str(exc).splitlines()[0]}); reinstall it: apt-get install chromium")
+        try:
+            context = browser.new_context(viewport={"width": 1100, "height": 900})
+            context.route("**/*", route)
+            page = context.new_page()
+            page.on("request", lambda r: requests.append(r.url))
+            page.on("console", lambda m: console_errors.append(m.text) if m.type == "error" else None)
+            page.on("pageerror", lambda e: page_errors.append(str(e)))
+            page.goto(out.resolve().as_uri(), wait_until="load")
+            timing = page.evaluate("""() => { const n = performance.getEntriesByType('navigation')[0];
+                                              return {start: n.startTime, load: n.loadEventEnd}; }""")
+            found = page.evaluate("""(keys) => keys.map(k => {
+                const s = document.getElementById(k);
+                if (!s) return [k, false, 0, 0];
+                const imgs = [...s.querySelectorAll('img')];
+                const svgs = [...s.querySelectorAll('svg')].filter(v => v.childElementCount > 0);
+                const decoded = imgs.filter(i => i.complete && i.naturalWidth > 0).length + svgs.length;
+                return [k, true, imgs.length + svgs.length, decoded];
+            })""", list(SECTIONS))
+            top = page.evaluate("() => [!!document.getElementById('verdict'), !!document.getElementById('summary'),"
+                                " document.title]")
+        finally:
+            browser.close()
+    load_ms = timing["load"] - timing["start"]
+    print(f"\nreport of {SESSION.name}: {out.stat().st_size / 1024:.0f} KiB, loaded in {load_ms:.0f} ms")
+    assert not blocked, f"the page asked the network for {blocked}"
+    assert all(u.startswith(("file:", "data:")) for u in requests), requests
+    assert not console_errors and not page_errors, (console_errors, page_errors)
+    for key, present, figures, decoded in found:
+        assert present, f"section {key} missing"
+        assert figures >= 1 and decoded == figures, f"section {key}: {decoded} of {figures} figures decoded"
+    assert top[0] and top[1] and "02_undisturbed_slow_rotation_B" in top[2]
+    assert out.stat().st_size < MAX_BYTES
+    assert 0 < load_ms < MAX_LOAD_MS
+
+
+def test_command_line_writes_the_page_and_refuses_bad_input(built, tmp_path, run_magyro, assert_plain_failure):
+    """`magyro report` over report_file: progress on stderr, the verdict on stdout; -q silent; exit 2 on bad input."""
+    _, cal_path, _, _ = built
+    out = tmp_path / "r.html"
+    result = run_magyro("report", SESSION, cal_path, "-o", out, "--no-split-check")
+    assert result.returncode == 0, result.stderr
+    assert "report: dead reckoning" in result.stderr and f"report written to {out}" in result.stdout
+    page = out.read_text(encoding="utf-8")
+    assert "The split-half check was not run:" in page
+    quiet = run_magyro("report", SESSION, cal_path, "-o", tmp_path / "q.html", "--no-split-check", "-q")
+    assert quiet.returncode == 0 and quiet.stdout == "" and quiet.stderr == ""
+    missing = tmp_path / "none.html"
+    message = assert_plain_failure(run_magyro("report", SESSION, tmp_path / "nope.json", "-o", missing, "-q"), 2)
+    assert "nope.json" in message and not missing.exists()
