@@ -203,3 +203,32 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     if s < 1e-12:
         return np.eye(3) if c > 0 else exp_so3(np.pi * tangent_basis(a)[:, 0])
     return exp_so3(axis / s * np.arctan2(s, c))
+
+
+def interpolate(t_known_s: np.ndarray, C: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    """Rotations (N, 3, 3) known at times `t_known_s`, at times `t_s` by geodesic interpolation between
+    the neighbouring known instants (held at the ends)."""
+    t_known_s = np.asarray(t_known_s, dtype=float)
+    t_s = np.asarray(t_s, dtype=float)
+    k = np.clip(np.searchsorted(t_known_s, t_s, side="right") - 1, 0, len(t_known_s) - 2)
+    f = np.clip((t_s - t_known_s[k]) / (t_known_s[k + 1] - t_known_s[k]), 0.0, 1.0)
+    exact = f == 0.0
+    out = C[k].copy()
+    move = ~exact
+    if move.any():
+        d = log_so3(np.swapaxes(C[k[move]], -1, -2) @ C[k[move] + 1])
+        out[move] = C[k[move]] @ exp_so3(f[move, None] * d)
+    return out
+
+
+def right_jacobian(phi: np.ndarray) -> np.ndarray:
+    """J_r(phi), (3, 3) or (N, 3, 3): Exp(phi + d) = Exp(phi) Exp(J_r(phi) d) to first order in d."""
+    phi = np.asarray(phi, dtype=float)
+    th2 = np.sum(phi * phi, axis=-1)[..., None, None]
+    th = np.sqrt(th2)
+    small = th2 < 1e-10
+    th_safe = np.where(small, 1.0, th)
+    a = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(th_safe)) / th_safe**2)
+    b = np.where(small, 1.0 / 6.0 - th2 / 120.0, (th_safe - np.sin(th_safe)) / th_safe**3)
+    P = skew(phi)
+    return np.broadcast_to(np.eye(3), P.shape) - a * P + b * (P @ P)

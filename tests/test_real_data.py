@@ -10,9 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import scipy.linalg
 
-from magyro import so3
 from magyro.options import Options
 from magyro import calibrate
 from magyro.io import import_broad_movement
@@ -21,6 +19,7 @@ from magyro.result.reported import misalignment_vector
 from magyro.studies.scenario import load_problem
 from magyro.studies.simulate import simulate
 from magyro.studies.dead_reckoning import validate
+from magyro.studies.distortion import distorted, distortion_z_scores, predicted_distorted
 
 REPO = Path(__file__).resolve().parents[1]
 BROAD_02_SHIPPED = REPO / "data" / "broad-02.parquet"
@@ -94,94 +93,10 @@ def test_shipped_trial_has_no_warnings(broad02):
 
 # =========================================================================== 2. known distortions
 
-# gyro y' = A y + b: scale errors of a few %, non-orthogonality ~0.5 deg, bias ~0.5 deg/s
-A_GYRO = np.array([[1.05, 0.010, -0.008],
-                   [0.00, 0.970, 0.012],
-                   [0.00, 0.000, 1.020]])
-B_GYRO = np.deg2rad([0.5, -0.3, 0.2])
-# magnetometer y_m' = Q T y_m + c: soft iron T (a few %), hard iron c (uT), rotation Q (a few deg)
-T_MAG = np.array([[1.04, 0.020, -0.010],
-                  [0.00, 0.970, 0.015],
-                  [0.00, 0.000, 1.020]])
-C_MAG = np.array([30.0, -20.0, 15.0])
-Q_MAG = so3.euler_to_dcm([2.0, -3.0, 4.0])
-
-
-def distorted(session):
-    return dataclasses.replace(session, gyro_rad_s=session.gyro_rad_s @ A_GYRO.T + B_GYRO,
-                               mag=session.mag @ (Q_MAG @ T_MAG).T + C_MAG)
-
-
-def rq_positive(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """M = U P with U upper triangular, positive diagonal, and P a proper rotation (det M > 0)."""
-    U, P = scipy.linalg.rq(M)
-    D = np.diag(np.sign(np.diag(U)))
-    U, P = U @ D, D @ P
-    assert np.linalg.det(P) > 0
-    return U, P
-
-
-def predicted_distorted(cal) -> dict:
-    """What the calibration of the distorted session must be, from the undistorted one.
-
-    Undistorted model (docs/spec.md section 1): y_m = R^-1 C_i^m m^i + h,  w^m = K y_g + eps,
-    K = C_b^m K_g, eps = C_b^m eps_b, i = the m frame at the first sample.
-
-    Gyro, y' = A y + b:  y = A^-1 (y' - b), so in the *same* m frame
-        w^m = K A^-1 y' + (eps - K A^-1 b).
-    Magnetometer, y_m' = Q T y_m + c:
-        y_m' = Q T R^-1 C_i^m m^i + (Q T h + c).
-    Q T R^-1 is not upper triangular; factor it RQ-wise, Q T R^-1 = U P (U upper
-    triangular with positive diagonal, P a rotation; det > 0 so P is proper). The
-    distorted magnetometer then is the model with R'^-1 = U in a new equivalent
-    magnetometer frame m' = P m (C_m^m' = P):
-        y_m' = U (P C_i^m P^T) (P m^i) + h'.
-    The new inertial frame is m' at the first sample, so C_i'^m' = P C_i^m P^T and
-    m^i' = P m^i. The gyro seen in m' is w^m' = P w^m, hence
-        R' = U^-1,  h' = Q T h + c,  field_i' = P field_i,
-        K' = P K A^-1,  eps' = P (eps - K A^-1 b),  tau' = tau.
-    QR split of K' = (P C_b^m)(K_g A^-1): K_g A^-1 is upper triangular with positive
-    diagonal (A is), so by uniqueness of the split
-        C_b^m' = P C_b^m,  K_g' = K_g A^-1,  eps_b' = C_b^m'^T eps' = eps_b - K_g A^-1 b.
-    (The gyro frame b does not move because A is upper triangular; only m turns, by P.)
-    """
-    A_inv = np.linalg.inv(A_GYRO)
-    U, P = rq_positive(Q_MAG @ T_MAG @ np.linalg.inv(cal.R))
-    return {
-        "K_g": cal.K_g @ A_inv,
-        "bias_deg_s": np.rad2deg(cal.bias_rad_s - cal.K_g @ A_inv @ B_GYRO),
-        "C_b_m": P @ cal.C_b_m,
-        "K": P @ cal.K @ A_inv,
-        "eps_deg_s": np.rad2deg(P @ (cal.eps_rad_s - cal.K @ A_inv @ B_GYRO)),
-        "R": np.linalg.inv(U),
-        "h": Q_MAG @ T_MAG @ cal.h + C_MAG,
-        "field_i": P @ cal.field_i,
-        "time_offset_s": cal.time_offset_s,
-        "P": P,
-    }
-
-
 @pytest.fixture(scope="module")
 def broad02_distorted(broad02):
     session, _ = broad02
     return calibrate(distorted(session), Options())
-
-
-def distortion_z_scores(cal_d, pred) -> dict[str, np.ndarray]:
-    """Distorted solve minus prediction, in units of the distorted solve's own std."""
-    s = cal_d.std
-    return {
-        "K_g": z_scores(cal_d.K_g[UPPER], pred["K_g"][UPPER], s.K_g[UPPER]),
-        "bias_deg_s": z_scores(cal_d.bias_deg_s, pred["bias_deg_s"], s.bias_deg_s),
-        "misalignment_deg": np.rad2deg(misalignment_vector(pred["C_b_m"], cal_d.C_b_m)) / s.misalignment_deg,
-        "K": z_scores(cal_d.K, pred["K"], s.K).ravel(),
-        # eps' = C_b^m' eps_b': its per-axis std is the bias std turned by a few degrees
-        "eps_deg_s": z_scores(np.rad2deg(cal_d.eps_rad_s), pred["eps_deg_s"], s.bias_deg_s),
-        "R": z_scores(cal_d.R[UPPER], pred["R"][UPPER], s.R[UPPER]),
-        "h": z_scores(cal_d.h, pred["h"], s.h),
-        "field_i": z_scores(cal_d.field_i, pred["field_i"], s.field_i),
-        "time_offset_s": np.atleast_1d(z_scores(cal_d.time_offset_s, pred["time_offset_s"], s.time_offset_s)),
-    }
 
 
 @pytest.mark.slow
@@ -342,10 +257,15 @@ def test_undisturbed_trial_gives_no_field_warning(broad09):
 @pytest.mark.broad
 @pytest.mark.slow
 @needs_broad
-def test_split_half_check_says_the_std_is_too_small_on_a_real_trial(broad09):
-    """docs/real-data.md section 2: the halves of trial 09 disagree by 2.9 sigma RMS (simulated: at most 1.35)."""
+def test_split_half_check_holds_with_the_std_that_counts_the_room(broad09):
+    """docs/real-data.md section 2: with the white-noise std the halves of trial 09 disagreed by 2.1 sigma RMS;
+    the std that counts the room's field disturbance (measured here: 0.7 % of the field, ~5 s) is about 3x
+    the white one, and with it the halves agree (RMS z 0.95, issue 13's target 0.6-1.5), with no warning."""
     report = broad09.consistency
-    assert report.rms_z > 2.0, report.rms_z
-    assert [w for w in broad09.warnings if "halves of the recording disagree" in w], broad09.warnings
-    worst = report.parameters[report.worst]
-    assert worst["split_std"] > 2.0 * worst["reported_std"], worst
+    assert 0.6 <= report.rms_z <= 1.5, report.rms_z
+    assert not [w for w in broad09.warnings if "halves of the recording disagree" in w], broad09.warnings
+    disturbance = broad09.noise.field_disturbance
+    assert 0.003 < disturbance.std_fraction < 0.03 and 1.0 < disturbance.correlation_time_s < 20.0, disturbance
+    ratio = np.concatenate([broad09.std.bias_deg_s / broad09.std_white.bias_deg_s,
+                            np.diag(broad09.std.K_g) / np.diag(broad09.std_white.K_g)])
+    assert np.all(ratio > 1.5), ratio

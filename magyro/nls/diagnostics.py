@@ -18,7 +18,7 @@ from magyro.nls.solve import Solution, residual_matrix
 from magyro.observability.gate import ObservabilityAnalysis
 from magyro.result.calibration import Calibration
 from magyro.result.fit import FieldChange, LeastSquaresFit, SuspectWindow
-from magyro.result.parts import Excitation, NoiseReport, RestCheck, SolverReport
+from magyro.result.parts import Excitation, FieldDisturbance, NoiseReport, RestCheck, SolverReport
 from magyro.result.reported import axis_mapping_warning, qr_split, std_from_covariance
 from magyro.session import Session, runs_of_true
 
@@ -118,8 +118,9 @@ def warnings_for(fit: LeastSquaresFit, analysis: ObservabilityAnalysis, C_b_m: n
 
 
 def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, reduced: Reduced,
-             method: NLS, total_s: float) -> Calibration:
-    """The Calibration of a converged solve: parameters, QR split, std, fit statistics and warnings."""
+             method: NLS, total_s: float, cov_theta: np.ndarray, disturbance: FieldDisturbance) -> Calibration:
+    """The Calibration of a converged solve: parameters, QR split, std (from `cov_theta`, the covariance of the
+    corrections with the field disturbance counted; the white std beside it), fit statistics and warnings."""
     g = sol.p[: problem.n_glob_p]
     theta = sol.x[: problem.n_theta]
     S, h, K, eps, m_i, tau = (np.array(v) for v in problem.physical_function(theta, g))
@@ -130,17 +131,19 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
     # No a-posteriori variance-factor scaling: the noise levels are already calibrated (given, from
     # rests with their correlation, or re-weighted from the residuals' effective scale); the plain
     # factor counts correlated samples as independent and would undo that. It is reported in `fit`.
-    std = std_from_covariance(propagate(problem, theta, g, np.linalg.inv(reduced.information), C))
+    std_white = std_from_covariance(propagate(problem, theta, g, np.linalg.inv(reduced.information), C))
+    std = std_from_covariance(propagate(problem, theta, g, cov_theta, C))
     a = prep.analysis
     stats = sol.stats
     return Calibration(
         K_g=Kg, bias_rad_s=C.T @ eps, K=K, eps_rad_s=eps, C_b_m=C, R=R, h=h,
-        mag_unit=prep.session.mag_unit, field_i=m_i, std=std,
+        mag_unit=prep.session.mag_unit, field_i=m_i, std=std, std_white=std_white,
         observability=Excitation.of(a),
         solver=SolverReport("nls", stats["return_status"], int(stats["iter_count"]), float(sol.seconds), float(total_s),
                             {"gauss_newton_decrement": stats["gauss_newton_decrement"], "passes": sol.passes,
                              "nodes": int(grid.nodes), "stride": int(grid.stride), "loss": method.loss}),
-        noise=NoiseReport(float(prep.gyro_density), float(sol.sigma_mag), float(prep.sigma_mag), prep.noise_source),
+        noise=NoiseReport(float(prep.gyro_density), float(sol.sigma_mag), float(prep.sigma_mag), prep.noise_source,
+                          disturbance),
         fit=fit,
         time_offset_s=tau,
         time_offset_estimated=problem.n_theta > N_GLOBAL,

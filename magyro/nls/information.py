@@ -78,20 +78,31 @@ def propagate(problem: JointProblem, theta, g, cov_theta, C_ref) -> np.ndarray:
     return J @ cov_theta @ J.T
 
 
-def information_covariance(problem: JointProblem, lin: Linearisation, p) -> np.ndarray:
+def information_covariance(problem: JointProblem, lin: Linearisation, p, session=None) -> np.ndarray:
     """Covariance of the reported vector (result.REPORTED layout) from the Gauss-Newton information
-    at the linearisation point; all inf where the information is singular (a direction the data do not see)."""
-    info = reduce_hessian(problem.hessian_function(np.zeros(problem.n_x), p), problem.n_theta).information
-    lam = np.linalg.eigvalsh(info)
+    at the linearisation point; all inf where the information is singular (a direction the data do not see).
+
+    Given the `session`, the field disturbance it shows is counted as the solve counts it
+    (`magyro.nls.disturbance`); without, the white-noise covariance (the Cramer-Rao bound of a simulation).
+    """
+    reduced = reduce_hessian(problem.hessian_function(np.zeros(problem.n_x), p), problem.n_theta)
+    lam = np.linalg.eigvalsh(reduced.information)
     if lam[0] <= lam[-1] * 1e-14:
         return np.full((N_REPORTED, N_REPORTED), np.inf)
+    if session is None:
+        cov_theta = np.linalg.inv(reduced.information)
+    else:
+        from magyro.nls.disturbance import disturbance_covariance
+
+        cov_theta = disturbance_covariance(problem, np.zeros(problem.n_x), p, reduced, lin.C_m_i_nominal, session)[0]
     C0, _ = qr_split(lin.K0)
-    return propagate(problem, np.zeros(problem.n_theta), p[: problem.n_glob_p], np.linalg.inv(info), C0)
+    return propagate(problem, np.zeros(problem.n_theta), p[: problem.n_glob_p], cov_theta, C0)
 
 
-def information_std(problem: JointProblem, lin: Linearisation, p) -> dict:
-    """One-sigma of every reported parameter from the Gauss-Newton information at the linearisation point."""
-    return std_from_covariance(information_covariance(problem, lin, p))
+def information_std(problem: JointProblem, lin: Linearisation, p, session=None) -> dict:
+    """One-sigma of every reported parameter from the Gauss-Newton information at the linearisation point
+    (with the `session`'s field disturbance counted, when given: see `information_covariance`)."""
+    return std_from_covariance(information_covariance(problem, lin, p, session))
 
 
 def predicted_std(prep: Prepared, options: Options | None = None, method: NLS | None = None) -> dict:
@@ -102,12 +113,15 @@ def predicted_std(prep: Prepared, options: Options | None = None, method: NLS | 
     propagated like the solved std. Entries are inf where the information is
     singular (unobservable). The linearisation point is the plain eq. (13)
     estimate: the lag search that the solve needs to converge changes a
-    prediction by no more than the few percent it moves K.
+    prediction by no more than the few percent it moves K. The room's field
+    disturbance is measured from the recording and counted as the solve counts
+    it; what cannot be predicted before solving is the magnetometer noise the
+    solve re-weights to (its residuals' effective scale).
     """
     options, method = options or Options(), method or NLS()
     grid, lin, problem = build_problem(prep, options, method, search_lag=False)
     p = problem_parameters(problem, prep, lin, prep.sigma_mag, lin.time_offset_s)
-    return information_std(problem, lin, p)
+    return information_std(problem, lin, p, prep.session)
 
 
 def attitude_covariance_blocks(red: Reduced) -> np.ndarray:

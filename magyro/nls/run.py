@@ -5,7 +5,8 @@
     3. the accuracy gate: the information of the problem at its start says what the solve can reach;
        too little is refused (exit 3) before any iteration
     4. the Gauss-Newton decrement check: a solve that could still improve is refused
-    5. the marginal information, std and warnings assembled into the result (`magyro.nls.diagnostics`)
+    5. the std with the room's field disturbance marginalised (`magyro.nls.disturbance`), the white std beside it,
+       fit statistics and warnings assembled into the result (`magyro.nls.diagnostics`)
     6. when asked (`NLS(trajectory=True)`), the attitude at the nodes with its std (`magyro.nls.trajectory`)
 """
 from __future__ import annotations
@@ -21,8 +22,9 @@ from magyro.nls.information import gauss_newton_decrement, information_std, redu
 from magyro.nls.method import NLS
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.solve import build_problem, problem_parameters, solve_passes
-from magyro.nls.trajectory import attitude_trajectory
-from magyro.observability.gate import accuracy_gate, needs_accuracy_check
+from magyro.nls.disturbance import disturbance_covariance
+from magyro.nls.trajectory import attitude_trajectory, solved_attitudes
+from magyro.observability.gate import accuracy_gate, accuracy_shortfalls, accuracy_summary, needs_accuracy_check
 from magyro.options import Options
 from magyro.result.calibration import Calibration
 from magyro.session import Session
@@ -51,11 +53,30 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
             f"(a further Gauss-Newton step would still reduce chi^2 by {decrement:.3g})"
         )
     sol.stats["gauss_newton_decrement"] = decrement
-    cal = assemble(problem, prep, grid, sol, reduced, method, time.perf_counter() - t_start)
-    cal.warnings.extend(gate_warnings)
+    cov_theta, disturbance = disturbance_covariance(problem, sol.x, sol.p, reduced, solved_attitudes(problem, lin, sol.x),
+                                                    prep.session)
+    cal = assemble(problem, prep, grid, sol, reduced, method, time.perf_counter() - t_start, cov_theta, disturbance)
+    cal.warnings.extend(gate_warnings or solved_accuracy_gate(cal, options))
     if method.trajectory:
         cal.trajectory = attitude_trajectory(problem, grid, lin, sol.x, reduced, prep.session, cal.R, cal.h)
     return cal
+
+
+def solved_accuracy_gate(cal: Calibration, options: Options) -> list[str]:
+    """The bounds of `options.max_std` on the solved std, which counts the room's field disturbance: a motion that
+    excites every parameter well (no check before the solve) can still leave a std too large in a room whose field
+    wanders. Refused (exit 3) as the prediction is, or with --force a warning."""
+    shortfalls = accuracy_shortfalls(cal.std, options.max_std)
+    if not shortfalls:
+        return []
+    disturbance = cal.noise.field_disturbance
+    cause = (f"; the field wanders by {100 * disturbance.std_fraction:.1f} % along the path, which the std counts: record "
+             "away from iron and magnets, or longer" if disturbance is not None and disturbance.std_fraction > 0.002 else "")
+    summary = accuracy_summary(shortfalls, "one-sigma")
+    if options.force:
+        return [f"solved with --force although the std exceeds its bounds: {summary}{cause}"]
+    raise ObservabilityError(f"the calibration is too uncertain to be worth having: {summary}{cause} (--force reports it "
+                             "anyway; the bounds are Options.max_std, --max-std-* on the command line)")
 
 
 def predicted_accuracy_gate(problem: JointProblem, prep: Prepared, lin: Linearisation, options: Options) -> list[str]:
@@ -64,5 +85,5 @@ def predicted_accuracy_gate(problem: JointProblem, prep: Prepared, lin: Linearis
     if not needs_accuracy_check(prep.analysis):
         return []
     p0 = problem_parameters(problem, prep, lin, prep.sigma_mag, lin.time_offset_s)
-    predicted = information_std(problem, lin, p0)
+    predicted = information_std(problem, lin, p0, prep.session)
     return accuracy_gate(predicted, options)

@@ -12,11 +12,16 @@ from magyro.result.trajectory import AttitudeTrajectory
 from magyro.session import Session
 
 
+def solved_attitudes(problem: JointProblem, lin: Linearisation, x: np.ndarray) -> np.ndarray:
+    """C_m_i at every node, (N, 3, 3): the nominal attitude turned by the solved correction (node 0 the gauge, I)."""
+    phi = np.vstack([np.zeros(3), x[problem.n_theta:].reshape(-1, 3)])
+    return lin.C_m_i_nominal @ so3.exp_so3(phi)
+
+
 def attitude_trajectory(problem: JointProblem, grid: Grid, lin: Linearisation, x: np.ndarray, reduced: Reduced,
                         session: Session, R: np.ndarray, h: np.ndarray) -> AttitudeTrajectory:
     """C_m_i at every node (node 0 the gauge, I), the one-sigma of each, and the calibrated field there."""
-    phi = np.vstack([np.zeros(3), x[problem.n_theta:].reshape(-1, 3)])
-    C_m_i = lin.C_m_i_nominal @ so3.exp_so3(phi)
+    C_m_i = solved_attitudes(problem, lin, x)
     cov = attitude_covariance_blocks(reduced)
     std = np.vstack([np.zeros(3), np.sqrt(np.maximum(np.diagonal(cov, axis1=1, axis2=2), 0.0))])
     field = calibrated_field(R, h, session.mag[grid.node_mag_index])

@@ -210,13 +210,13 @@ def accuracy_shortfalls(std, bounds) -> list[tuple[str, float, float, str]]:
     return out
 
 
-def accuracy_summary(shortfalls: list[tuple[str, float, float, str]]) -> str:
+def accuracy_summary(shortfalls: list[tuple[str, float, float, str]], what: str = "predicted one-sigma") -> str:
     """The shortfalls in one sentence, worst first, with the motion to add."""
     worst = sorted(shortfalls, key=lambda s: -s[1] / s[2])
     parts = [f"{name} {value:.3g} (bound {bound:.3g})" for name, value, bound, _ in worst[:4]]
     advice = list(dict.fromkeys(a for *_, a in worst))
     more = f" and {len(worst) - 4} more" if len(worst) > 4 else ""
-    return f"predicted one-sigma {', '.join(parts)}{more}; {'; '.join(advice[:2])}"
+    return f"{what} {', '.join(parts)}{more}; {'; '.join(advice[:2])}"
 
 
 ACCURACY_CHECK_BELOW_SNR = 100.0   # 10x the rank's floor; above, every test motion met the default bounds

@@ -58,6 +58,7 @@ class Calibration:
     consistency: SplitCheck | None = None     # the split-half check, when asked for
     recording: RecordingCheck | None = None   # the recording check and what it repaired (magyro.calibrate)
     trajectory: AttitudeTrajectory | None = None   # the least squares' attitudes, when asked for (not in the JSON)
+    std_white: Std | None = None   # the least squares' std from the white-noise weights alone (`std` adds the room)
 
     @property
     def bias_deg_s(self) -> np.ndarray:
@@ -116,6 +117,7 @@ class Calibration:
             "time_offset_s": float(self.time_offset_s),
             "time_offset_estimated": self.time_offset_estimated,
             "std": self.std.to_dict(),
+            **({"std_white": self.std_white.to_dict()} if self.std_white is not None else {}),
             "rests": None if self.rests is None else self.rests.to_dict(),
             "warnings": list(self.warnings),
             "observability": self.observability.to_dict(),
@@ -156,6 +158,11 @@ class Calibration:
         lines.append("magnetometer R diagonal  " + "  ".join(f"{self.R[i, i]:.5g} +/- {s.R[i][i]:.2g}" for i in range(3)))
         if self.time_offset_estimated:
             lines.append(f"magnetometer lag behind the gyro (ms)  {1e3 * self.time_offset_s:+.2f} +/- {1e3 * s.time_offset_s:.2f}")
+        disturbance = None if self.noise is None else self.noise.field_disturbance
+        if disturbance is not None and self.std_white is not None:
+            factor = float(np.median(s.bias_deg_s / np.maximum(self.std_white.bias_deg_s, 1e-300)))
+            lines.append(f"the field wanders by {100 * disturbance.std_fraction:.2f} % along the path (correlation "
+                         f"{disturbance.correlation_time_s:.1f} s); the std counts it ({factor:.1f}x the white-noise std)")
         if self.rests is not None:
             lines.append(f"bias from {self.rests.seconds:.1f} s of rest (deg/s)  "
                          + "  ".join(f"{v:+8.4f}" for v in self.rests.bias_deg_s))
@@ -241,4 +248,5 @@ def calibration_from_dict(data: dict) -> Calibration:
         rests=None if rests is None else RestCheck.from_dict(rests), warnings=list(data.get("warnings", [])),
         consistency=None if consistency is None else SplitCheck.from_dict(consistency),
         recording=None if data.get("recording") is None else RecordingCheck.from_dict(data["recording"]),
+        std_white=None if data.get("std_white") is None else Std.from_dict(data["std_white"]),
     )

@@ -148,6 +148,7 @@ class NoiseReport:
     mag_std: float
     mag_std_estimated: float | None = None   # before the least squares' re-weighting
     source: str = ""
+    field_disturbance: "FieldDisturbance | None" = None   # the least squares: counted in its std
 
     def to_dict(self) -> dict:
         out = {"gyro_density_rad_s_sqrt_hz": self.gyro_density_rad_s_sqrt_hz, "mag_std": self.mag_std}
@@ -155,13 +156,35 @@ class NoiseReport:
             out["mag_std_estimated"] = self.mag_std_estimated
         if self.source:
             out["source"] = self.source
+        if self.field_disturbance is not None:
+            out["field_disturbance"] = self.field_disturbance.to_dict()
         return out
 
     @classmethod
     def from_dict(cls, data: dict) -> "NoiseReport":
         where = "noise"
+        disturbance = data.get("field_disturbance")
         return cls(read_number(data, "gyro_density_rad_s_sqrt_hz", where), read_number(data, "mag_std", where),
-                   data.get("mag_std_estimated"), str(data.get("source", "")))
+                   data.get("mag_std_estimated"), str(data.get("source", "")),
+                   None if disturbance is None else FieldDisturbance.from_dict(disturbance))
+
+
+@dataclass(frozen=True)
+class FieldDisturbance:
+    """How far the room's field departs from homogeneity along the path (JSON `noise.field_disturbance`):
+    std as a fraction of the field and correlation time, measured from the calibrated field's magnitude
+    (`magyro.nls.disturbance`); the std of the calibration counts it."""
+
+    std_fraction: float
+    correlation_time_s: float
+
+    def to_dict(self) -> dict:
+        return {"std_fraction": self.std_fraction, "correlation_time_s": self.correlation_time_s}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "FieldDisturbance":
+        where = "noise.field_disturbance"
+        return cls(read_number(data, "std_fraction", where), read_number(data, "correlation_time_s", where))
 
 
 @dataclass(frozen=True)

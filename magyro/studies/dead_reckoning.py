@@ -196,18 +196,8 @@ def _truth_in_span(session: Session):
 
 
 def attitude_at(t_gyro_s: np.ndarray, C: np.ndarray, t_s: np.ndarray) -> np.ndarray:
-    """Attitudes at `t_s` by geodesic interpolation between the neighbouring gyro instants."""
-    t_gyro_s = np.asarray(t_gyro_s, dtype=float)
-    t_s = np.asarray(t_s, dtype=float)
-    k = np.clip(np.searchsorted(t_gyro_s, t_s, side="right") - 1, 0, len(t_gyro_s) - 2)
-    f = np.clip((t_s - t_gyro_s[k]) / (t_gyro_s[k + 1] - t_gyro_s[k]), 0.0, 1.0)
-    exact = f == 0.0
-    out = C[k].copy()
-    move = ~exact
-    if move.any():
-        d = so3.log_so3(np.swapaxes(C[k[move]], -1, -2) @ C[k[move] + 1])
-        out[move] = C[k[move]] @ so3.exp_so3(f[move, None] * d)
-    return out
+    """Attitudes at `t_s` by geodesic interpolation between the neighbouring gyro instants (`so3.interpolate`)."""
+    return so3.interpolate(t_gyro_s, C, t_s)
 
 
 def _angle_deg(C: np.ndarray) -> np.ndarray:

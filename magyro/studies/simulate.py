@@ -29,6 +29,7 @@ seed sees the same motion.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -240,3 +241,22 @@ def write_truth(truth: dict, path: str | os.PathLike) -> None:
     from magyro.io.atomic import write_text_atomically
 
     write_text_atomically(path, json.dumps(truth, indent=2) + "\n")
+
+
+def with_field_disturbance(session: Session, problem: Scenario, std_fraction: float, correlation_s: float,
+                           seed: int) -> Session:
+    """The session in a field that is not homogeneous: m^i + delta(t), delta an isotropic Gauss-Markov process
+    in the frame i (std `std_fraction` of the field per axis, correlation time `correlation_s`), as a room's
+    iron makes it along a hand-held path. Only the magnetometer changes; the truth stays that of the problem."""
+    rng = np.random.default_rng([seed, 7])
+    t = session.t_mag_s
+    decay = np.exp(-np.diff(t) / correlation_s)
+    kicks = rng.standard_normal((len(t), 3))
+    delta = np.empty((len(t), 3))
+    delta[0] = std_fraction * kicks[0]
+    for k in range(1, len(t)):
+        delta[k] = decay[k - 1] * delta[k - 1] + std_fraction * np.sqrt(1.0 - decay[k - 1] ** 2) * kicks[k]
+    C_m_i = truth_attitude(problem, t - problem.mag_time_offset_s)
+    extra = np.einsum("nji,nj->ni", C_m_i, delta) @ np.linalg.inv(problem.R).T
+    return dataclasses.replace(session, mag=session.mag + extra,
+                               source=f"{session.source}:field_disturbance={std_fraction},{correlation_s}s")
