@@ -5,6 +5,12 @@ grid's shape (stride, sub-steps), so their C code is generated once, compiled
 with the machine's C compiler and kept in a cache folder keyed by a hash of the
 code. Later runs load the shared library in milliseconds. Without a compiler
 (or with MAGYRO_JIT=0) the interpreted kernel is used: same numbers, slower.
+
+The kernels of one shape are compiled side by side (one compiler process each)
+at -O1: on the 2-core machine a 100 s BROAD session's three kernels took 20.5 s
+one after the other at -O2 and 6.2 s side by side at -O1 (the slowest alone),
+and the warm solve is as fast (1.91 s against 1.92 s whole process). On a
+terminal, a line on stderr says that it is compiling and why.
 """
 from __future__ import annotations
 
@@ -12,12 +18,13 @@ import hashlib
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
 import casadi as ca
 
-COMPILE_FLAGS = ["-O2", "-shared", "-fPIC"]
+COMPILE_FLAGS = ["-O1", "-shared", "-fPIC"]
 
 
 def cache_dir() -> Path:
@@ -33,6 +40,25 @@ def jit_enabled() -> bool:
 
 def find_compiler() -> str | None:
     return os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
+
+
+def compile_kernels(fns: list[ca.Function], key: str) -> list[ca.Function]:
+    """`compile_kernel` for several kernels of one shape, their compilers run side by side."""
+    if not jit_enabled():
+        return list(fns)
+    libs = [library_path(fn.name(), key) for fn in fns]
+    missing = [(fn, lib) for fn, lib in zip(fns, libs) if not lib.exists()]
+    if missing:
+        say_compiling(len(missing), key)
+        build_libraries([(generate_c(fn), lib) for fn, lib in missing])
+    return [ca.external(fn.name(), str(lib)) if lib.exists() else fn for fn, lib in zip(fns, libs)]
+
+
+def say_compiling(count: int, key: str) -> None:
+    """One line on stderr, on a terminal only (a log or a test sees nothing)."""
+    if sys.stderr.isatty():
+        print(f"magyro: compiling {count} solver kernels for this session's shape ({key}); once per machine "
+              "and shape, some seconds", file=sys.stderr, flush=True)
 
 
 def compile_kernel(fn: ca.Function, key: str) -> ca.Function:
@@ -79,16 +105,27 @@ def generate_c(fn: ca.Function) -> bytes:
 
 def build_library(source: bytes, lib: Path) -> bool:
     """Compile C source into `lib` atomically; False when the compiler fails."""
-    lib.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=lib.parent) as tmp:
-        src = Path(tmp, "kernel.c")
-        src.write_bytes(source)
-        out = Path(tmp, lib.name)
-        done = subprocess.run(
-            [find_compiler(), *COMPILE_FLAGS, str(src), "-o", str(out), "-lm"],
-            capture_output=True,
-        )
-        if done.returncode != 0:
-            return False
-        os.replace(out, lib)
-    return True
+    return build_libraries([(source, lib)])[0]
+
+
+def build_libraries(jobs: list[tuple[bytes, Path]]) -> list[bool]:
+    """Compile each (C source, library) pair, the compilers side by side; each library is written atomically
+    (renamed into place when whole). False for a library whose compiler failed."""
+    if not jobs:
+        return []
+    jobs[0][1].parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=jobs[0][1].parent) as tmp:
+        running = []
+        for k, (source, lib) in enumerate(jobs):
+            src, out = Path(tmp, f"kernel{k}.c"), Path(tmp, f"{k}_{lib.name}")
+            src.write_bytes(source)
+            process = subprocess.Popen([find_compiler(), *COMPILE_FLAGS, str(src), "-o", str(out), "-lm"],
+                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            running.append((process, out, lib))
+        done = []
+        for process, out, lib in running:
+            ok = process.wait() == 0
+            if ok:
+                os.replace(out, lib)
+            done.append(ok)
+    return done

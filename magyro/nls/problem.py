@@ -42,7 +42,7 @@ import numpy as np
 
 from magyro import so3
 from magyro.nls.grid import Grid, gyro_at_mag_midpoints
-from magyro.nls.kernels import compile_kernel, load_cached_kernel
+from magyro.nls.kernels import compile_kernels, load_cached_kernel
 
 N_GLOBAL = 23          # calibration corrections without the time offset; 24 with it
 GLOBAL_SLICES = {"U": slice(0, 6), "dh": slice(6, 9), "dK": slice(9, 18), "deps": slice(18, 21), "dm": slice(21, 23), "dtau": slice(23, 24)}
@@ -208,7 +208,7 @@ class JointProblem:
         else:
             kernels = interval_kernels(self.n_theta, self.n_glob_p, self.n_data, s, L, huber)
             if compiled:
-                kernels = [compile_kernel(k, key) for k in kernels]
+                kernels = compile_kernels(kernels, key)
             self.residual_kernel, self.gradient_kernel, self.gn_kernel = kernels
         th = ca.SX.sym("theta", self.n_theta)
         g = ca.SX.sym("g", self.n_glob_p)
