@@ -124,13 +124,15 @@ def predicted_std(prep: Prepared, options: Options | None = None, method: NLS | 
     return information_std(problem, lin, p, prep.session)
 
 
-def attitude_covariance_blocks(red: Reduced) -> np.ndarray:
+def attitude_covariance_blocks(red: Reduced, cov_theta: np.ndarray | None = None) -> np.ndarray:
     """(N-1, 3, 3): the marginal covariance of each node's attitude correction phi_n, the calibration's
-    uncertainty included: the diagonal blocks of D^-1 + (D^-1 H_pt) Sigma_theta (D^-1 H_pt)^T."""
+    uncertainty (`cov_theta`, default the inverse information) included: the diagonal blocks of
+    D^-1 + (D^-1 H_pt) cov_theta (D^-1 H_pt)^T."""
     A, B = tridiagonal_blocks(red.D)
     inner = block_tridiagonal_inverse_diagonal(A, B)
     W = red.Dinv_Hpt.reshape(len(A), 3, -1)
-    return inner + np.einsum("nia,ab,njb->nij", W, np.linalg.inv(red.information), W)
+    cov_theta = np.linalg.inv(red.information) if cov_theta is None else cov_theta
+    return inner + np.einsum("nia,ab,njb->nij", W, cov_theta, W)
 
 
 def tridiagonal_blocks(D: ca.DM) -> tuple[np.ndarray, np.ndarray]:

@@ -58,7 +58,7 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     cal = assemble(problem, prep, grid, sol, reduced, method, time.perf_counter() - t_start, cov_theta, disturbance)
     cal.warnings.extend(gate_warnings or solved_accuracy_gate(cal, options))
     if method.trajectory:
-        cal.trajectory = attitude_trajectory(problem, grid, lin, sol.x, reduced, prep.session, cal.R, cal.h)
+        cal.trajectory = attitude_trajectory(problem, grid, lin, sol.x, reduced, prep.session, cal.R, cal.h, cov_theta)
     return cal
 
 

@@ -19,10 +19,10 @@ def solved_attitudes(problem: JointProblem, lin: Linearisation, x: np.ndarray) -
 
 
 def attitude_trajectory(problem: JointProblem, grid: Grid, lin: Linearisation, x: np.ndarray, reduced: Reduced,
-                        session: Session, R: np.ndarray, h: np.ndarray) -> AttitudeTrajectory:
+                        session: Session, R: np.ndarray, h: np.ndarray, cov_theta: np.ndarray | None = None) -> AttitudeTrajectory:
     """C_m_i at every node (node 0 the gauge, I), the one-sigma of each, and the calibrated field there."""
     C_m_i = solved_attitudes(problem, lin, x)
-    cov = attitude_covariance_blocks(reduced)
+    cov = attitude_covariance_blocks(reduced, cov_theta)
     std = np.vstack([np.zeros(3), np.sqrt(np.maximum(np.diagonal(cov, axis1=1, axis2=2), 0.0))])
     field = calibrated_field(R, h, session.mag[grid.node_mag_index])
     field[~grid.node_on_sample] = np.nan
