@@ -131,8 +131,7 @@ class RecordingCheck:
                          f"{s.jitter_s * 1e3:>10.3f}{f'{s.start_s:.3f}-{s.end_s:.3f}':>20}"
                          f"{100 * s.held_fraction:>8.1f}{s.gaps:>6}  {'bursty' if s.bursty else 'regular'}")
         if len(self.lag_s) == 2:
-            lines.append(f"magnetometer lag behind the gyro: {self.lag_s[0] * 1e3:.1f} ms at the start, "
-                         f"{self.lag_s[1] * 1e3:.1f} ms at the end")
+            lines.append(f"magnetometer {lag_words(self.lag_s[0])} at the start, {lag_words(self.lag_s[1])} at the end")
         if self.gyro_holes_s:
             lines.append(f"gyro holes (never integrated across): {len(self.gyro_holes_s)}, "
                          f"{sum(b - a for a, b in self.gyro_holes_s):.3f} s")
@@ -163,3 +162,8 @@ def _plain(value):
     if isinstance(value, float) and not np.isfinite(value):
         return None
     return value
+
+
+def lag_words(lag_s: float) -> str:
+    """'lags the gyro by 3.5 ms' or 'leads the gyro by 3.5 ms' (a negative lag)."""
+    return f"{'lags' if lag_s >= 0 else 'leads'} the gyro by {abs(lag_s) * 1e3:.1f} ms"

@@ -157,7 +157,8 @@ class Calibration:
         lines.append(f"magnetometer h ({self.mag_unit})  " + "  ".join(f"{h[i]:+.4g} +/- {sh[i]:.2g}" for i in range(3)))
         lines.append("magnetometer R diagonal  " + "  ".join(f"{self.R[i, i]:.5g} +/- {s.R[i][i]:.2g}" for i in range(3)))
         if self.time_offset_estimated:
-            lines.append(f"magnetometer lag behind the gyro (ms)  {1e3 * self.time_offset_s:+.2f} +/- {1e3 * s.time_offset_s:.2f}")
+            lines.append(f"magnetometer lag behind the gyro (ms, negative: it leads)  {1e3 * self.time_offset_s:+.2f} +/- "
+                         f"{1e3 * s.time_offset_s:.2f}")
         disturbance = None if self.noise is None else self.noise.field_disturbance
         if disturbance is not None and self.std_white is not None:
             factor = float(np.median(s.bias_deg_s / np.maximum(self.std_white.bias_deg_s, 1e-300)))
