@@ -63,6 +63,23 @@ def test_a_window_of_real_shaking_is_too_little_motion():
         magyro.calibrate(session)
 
 
+@pytest.mark.parametrize("start_s, seconds", [(40, 3.5), (80, 1.5), (60, 3.0), (100, 2.0), (100, 3.5)])
+def test_a_few_seconds_of_a_real_recording_are_too_little_motion_for_both_verdicts(start_s, seconds):
+    """Short cuts of BROAD trial 02 (and of a real phone export, seen once): `observe` said the solve refuses them,
+    while the solve answered exit 2 'the gyro axes are a mirror image' (40 s + 3.5 s, 80 s + 1.5 s: a noisy linear
+    estimate with scale factors of 1.5-38) or exit 1 'did not converge' after 200 iterations (60 s + 3 s, 100 s
+    + 2 s: the accuracy check was skipped, the excitation's signal to noise being high). Both must be exit 3."""
+    session = load_session(DATA / "broad-02.parquet").within(start_s - 0.5, start_s + seconds)
+    with pytest.raises(ObservabilityError) as refused:
+        magyro.calibrate(session)
+    assert "mirror image" not in str(refused.value) and "converge" not in str(refused.value)
+    try:
+        report = magyro.observe(session)
+    except ObservabilityError:
+        return
+    assert report.verdict == "insufficient", report.verdict
+
+
 def test_a_magnetometer_that_does_not_follow_a_turning_gyro_is_an_input_error():
     """The real trial's gyro, and a 'magnetometer' that only carries its own noise: no magnetometer at all."""
     real = load_session(DATA / "broad-02.parquet")

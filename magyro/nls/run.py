@@ -48,6 +48,9 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
             f"parameters and the solve finds no unique solution ({sol.stats['return_status']}); --method ekf --force "
             f"gives an estimate whose std shows what is missing. {prep.analysis.summary()}", prep.analysis)
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
+        if not options.force and not gate_checked(prep):
+            # the excitation looked strong enough to skip the accuracy check; a failed solve says look again
+            predicted_accuracy_gate(problem, prep, lin, options, always=True)
         raise SolverError(
             f"the solver did not converge: {sol.stats['return_status']} after {sol.stats['iter_count']} iterations "
             f"(a further Gauss-Newton step would still reduce chi^2 by {decrement:.3g})"
@@ -79,10 +82,17 @@ def solved_accuracy_gate(cal: Calibration, options: Options) -> list[str]:
                              "anyway; the bounds are Options.max_std, --max-std-* on the command line)")
 
 
-def predicted_accuracy_gate(problem: JointProblem, prep: Prepared, lin: Linearisation, options: Options) -> list[str]:
+def gate_checked(prep: Prepared) -> bool:
+    """Did the accuracy gate run before the solve (a motion weak somewhere, by the excitation's signal to noise)?"""
+    return needs_accuracy_check(prep.analysis)
+
+
+def predicted_accuracy_gate(problem: JointProblem, prep: Prepared, lin: Linearisation, options: Options,
+                            always: bool = False) -> list[str]:
     """The accuracy the solve can reach, from its own problem at the start: refused below `options.max_std`
-    (exit 3), and with --force refused only when no unique solution exists; the warnings of a forced solve."""
-    if not needs_accuracy_check(prep.analysis):
+    (exit 3), and with --force refused only when no unique solution exists; the warnings of a forced solve.
+    Run when the excitation is weak somewhere (`needs_accuracy_check`), or `always`."""
+    if not (always or gate_checked(prep)):
         return []
     p0 = problem_parameters(problem, prep, lin, prep.sigma_mag, lin.time_offset_s)
     predicted = information_std(problem, lin, p0, prep.session)

@@ -23,7 +23,8 @@ from magyro.nls.method import NLS
 from magyro.options import Options
 from magyro.observability.gate import unexcited_directions
 from magyro.nls.problem import N_GLOBAL, TIME_OFFSET_SCALE_S, JointProblem, Linearisation
-from magyro.result.reported import qr_split
+from magyro.errors import InputError, ObservabilityError
+from magyro.result.reported import mirror_is_credible, qr_split
 from magyro.session import HOLE_FACTOR, Session, hole_steps, runs_of_true
 
 NODE_RATE_HZ = 25.0   # nodes per second: strides 1, 2 and 4 at 100 Hz give the same estimates and std to 1e-6
@@ -110,12 +111,27 @@ def linearise(prep: Prepared, grid: Grid, options: Options, search_lag: bool = T
     else:
         lin0 = linear_gyro_estimate(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, prep.field_m, time_offset_s=options.time_offset_s,
                                     unexcited=unexcited)
-    qr_split(lin0.K)  # a mirrored gyro shows already in the linear estimate: say so before solving
+    check_axis_mapping(lin0.K, prep)  # a mirrored gyro shows already in the linear estimate: say so before solving
     C_nodes, stretch, in_hole = nominal_attitudes(s, lin0.K, lin0.eps, grid.t_node_s)
     C, m0 = aligned_stretches(C_nodes, stretch, in_hole, prep.field_m[grid.node_mag_index], grid.node_on_sample,
                               grid.t_node_s)
     S0 = np.linalg.inv(prep.fit.R)
     return Linearisation(S0, prep.fit.h, lin0.K, lin0.eps, m0, C, float(np.mean(np.diag(S0))), lin0.time_offset_s)
+
+
+def check_axis_mapping(K0: np.ndarray, prep: Prepared) -> None:
+    """InputError (exit 2) for a gyro whose axes mirror the magnetometer's, when the linear estimate says so
+    credibly; a mirrored estimate that is no plausible gyro is the noise of too little motion (exit 3)."""
+    try:
+        qr_split(K0)
+    except InputError:
+        if mirror_is_credible(K0):
+            raise
+        raise ObservabilityError(
+            "the motion is too short or too weak to tell the gyro's axes apart: its linear estimate (paper eq. 13) "
+            "comes out mirrored and is no plausible gyro (scale factors "
+            + ", ".join(f"{v:.2g}" for v in np.abs(np.linalg.qr(K0)[1].diagonal()))
+            + "), which is noise, not a wrong axis mapping; record longer, turning about every axis", prep.analysis) from None
 
 
 def build_problem(prep: Prepared, options: Options, method: NLS,

@@ -41,6 +41,7 @@ from magyro.observability.report import (SPHERE_BANDS, SPHERE_SECTORS, Coverage,
                                          Timeline, accuracy_rows, fmt)
 from magyro.options import Options, StdBounds
 from magyro.result.parts import Std
+from magyro.result.reported import plausible_gyro
 from magyro.session import Session
 
 CHECKPOINTS = 200                 # cumulative integral evaluated at this many times
@@ -173,12 +174,6 @@ def bias_free_rates(session: Session, prep: Prepared | None, analysis: Observabi
             if plausible_gyro(Kg):
                 return y @ Kg.T + C.T @ lin.eps, "corrected by the initial estimate of K_g and bias"
     return y - np.median(y, axis=0), "readings minus their median (taken as the bias)"
-
-
-def plausible_gyro(K_g: np.ndarray) -> bool:
-    """Scale factors within 0.5-2 and axes within 30 deg of orthogonal: any MEMS gyro, however poorly made."""
-    scale = np.diag(K_g)
-    return bool(np.all((scale > 0.5) & (scale < 2.0)) and np.all(np.abs(np.triu(K_g, 1)) < 0.5 * scale[None, :]))
 
 
 def sphere_cell(directions: np.ndarray, bands: int = SPHERE_BANDS, sectors: int = SPHERE_SECTORS) -> np.ndarray:

@@ -86,3 +86,17 @@ def std_from_covariance(cov_out: np.ndarray) -> Std:
     return Std(K_g=Kg, bias_deg_s=sd[REPORTED["bias_deg_s"]], misalignment_deg=sd[REPORTED["misalignment_deg"]], R=R,
                h=sd[REPORTED["h"]], K=sd[REPORTED["K"]].reshape(3, 3), field_i=sd[REPORTED["field_i"]],
                time_offset_s=float(sd[REPORTED["time_offset_s"]][0]))
+
+
+def plausible_gyro(K_g: np.ndarray) -> bool:
+    """Scale factors within 0.5-2 and axes within 30 deg of orthogonal: any MEMS gyro, however poorly made."""
+    scale = np.diag(K_g)
+    return bool(np.all((scale > 0.5) & (scale < 2.0)) and np.all(np.abs(np.triu(K_g, 1)) < 0.5 * scale[None, :]))
+
+
+def mirror_is_credible(K: np.ndarray) -> bool:
+    """Is a K whose QR split is mirrored (det < 0) a plausible gyro behind a wrong axis mapping, rather than the
+    noise of too little motion? Its upper-triangular factor must be a plausible gyro (`plausible_gyro`): short
+    cuts of BROAD trial 02 whose linear estimate came out mirrored had scale factors of 1.5-38."""
+    Q, Rq = np.linalg.qr(K)
+    return plausible_gyro(np.diag(np.sign(np.diag(Rq))) @ Rq)
