@@ -125,6 +125,8 @@ def solve_file(path, options: Options | None = None, method: str = "nls", method
     wants_history = history is not None or history_plot is not None
     if method == "nls" and wants_history:
         raise InputError("--history and --history-plot need --method ekf (the least squares has no estimate over time)")
+    if method != "nls" and (method_knobs or {}).get("hard_iron_walk") is not None:
+        raise InputError("--hard-iron-walk needs --method nls (the moving hard iron is a part of the least squares)")
     if method != "nls" and trajectory is not None:
         raise InputError("--trajectory needs --method nls (the attitude trajectory is a decision variable of the least squares)")
     knobs = {**nls_knobs(method, method_knobs or {}), **({"trajectory": True} if trajectory is not None else {})}

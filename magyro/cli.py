@@ -66,6 +66,7 @@ def solve(
     stride: Optional[int] = typer.Option(None, "--stride", min=1, help="One attitude node every N magnetometer samples (default: ~100 nodes/s)."),
     force: bool = typer.Option(False, "--force", help="Solve even when the motion does not excite every parameter."),
     loss: str = typer.Option("l2", "--loss", help="Loss on the magnetometer residuals: l2, or huber (robust to spikes and local iron)."),
+    hard_iron_walk: Optional[float] = typer.Option(None, "--hard-iron-walk", help="Experimental (nls): let the hard iron move, as a random walk of this density (magnetometer unit per sqrt(s), e.g. 1 for uT); for iron or a magnet on the board whose field drifts. See docs/real-data.md section 4 for where it helps and where it does not."),
     time_offset: bool = typer.Option(True, "--time-offset/--no-time-offset", help="Estimate the magnetometer's lag behind the gyro (default) or fix it to 0."),
     keep_rests: bool = typer.Option(False, "--keep-rests", help="Keep the rests at both ends in the solve (default: trimmed, as the paper does)."),
     split_check: bool = typer.Option(False, "--split-check", help="Also calibrate each half of the recording alone and warn when they disagree beyond their std (about 2x the time)."),
@@ -82,7 +83,7 @@ def solve(
 ):
     """The joint calibration: magnetometer ellipsoid, gyro K_g, bias, misalignment, field, attitude.
 
-    --stride, --loss, --time-offset and --split-check apply to the nls method only.
+    --stride, --loss, --hard-iron-walk, --time-offset and --split-check apply to the nls method only.
     """
     from magyro.api import solve_file
     from magyro.options import Options
@@ -92,7 +93,8 @@ def solve(
         options = Options.in_user_units(gyro_noise_deg_s_sqrt_hz, mag_noise, force=force, estimate_time_offset=time_offset,
                                         trim_rests=not keep_rests, split_check=split_check, max_std=bounds,
                                         repairs=Repairs.without(no_repair or []))
-        cal = solve_file(session, options, method, {"stride": stride, "loss": loss}, gyro_unit=gyro_unit,
+        cal = solve_file(session, options, method, {"stride": stride, "loss": loss, "hard_iron_walk": hard_iron_walk},
+                         gyro_unit=gyro_unit,
                          mag_unit=mag_unit, output=output, history=history, history_plot=history_plot,
                          trajectory=trajectory)
         if not quiet:

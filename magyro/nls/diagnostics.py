@@ -11,10 +11,11 @@ import numpy as np
 from magyro.front import ellipsoid, rests
 from magyro.front.prepare import Prepared
 from magyro.nls.grid import Grid
+from magyro.nls.hard_iron import hard_iron_at_samples
 from magyro.nls.information import Reduced, propagate
 from magyro.nls.method import NLS
 from magyro.nls.problem import N_GLOBAL, JointProblem
-from magyro.nls.solve import Solution, residual_matrix
+from magyro.nls.solve import Solution, gyro_residuals, magnetometer_residuals, residual_matrix
 from magyro.observability.gate import ObservabilityAnalysis
 from magyro.result.calibration import Calibration
 from magyro.result.fit import FieldChange, LeastSquaresFit, SuspectWindow
@@ -30,13 +31,15 @@ MAX_FIELD_CHANGE = 0.05         # BROAD: 1-3 % across the capture volume; a magn
 
 def residual_summary(problem: JointProblem, r: np.ndarray, session: Session, R: np.ndarray,
                      h: np.ndarray) -> LeastSquaresFit:
-    """Fit statistics of the whitened residual matrix r (one row per interval) and of the field magnitude."""
-    mag = r[:, :-3].reshape(-1, 3)[problem.grid.sample_mask]
-    n_res = mag.size + r[:, -3:].size   # the segments bridging a gap have no magnetometer residual
+    """Fit statistics of the whitened residual matrix r (one row per interval) and of the field magnitude;
+    `h` is the hard iron, or per magnetometer sample (n, 3) when it moves."""
+    mag = magnetometer_residuals(r, problem.grid.stride)[problem.grid.sample_mask]
+    gyro = gyro_residuals(r, problem.grid.stride)
+    n_res = mag.size + gyro.size + (3 * problem.n_int if problem.walk else 0)   # gap segments have no magnetometer residual
     dof = n_res - problem.n_x
     return LeastSquaresFit(
         mag_rms_normalised=float(np.sqrt(np.mean(mag**2))),
-        gyro_rms_normalised=float(np.sqrt(np.mean(r[:, -3:] ** 2))),
+        gyro_rms_normalised=float(np.sqrt(np.mean(gyro**2))),
         variance_factor=float(np.sum(r**2)) / dof,
         residuals=int(n_res),
         unknowns=int(problem.n_x),
@@ -47,7 +50,7 @@ def residual_summary(problem: JointProblem, r: np.ndarray, session: Session, R: 
 
 def suspect_segments(grid: Grid, residuals: np.ndarray) -> tuple[SuspectWindow, ...]:
     """Windows where the magnetometer fits far worse than typical (spikes, iron or a magnet near the path)."""
-    r = residuals[:, :-3]
+    r = residuals[:, : 3 * grid.stride]
     samples = 3 * grid.mag_weight.sum(axis=1)  # residual entries per interval with a magnetometer sample
     t = grid.t_node_s[:-1]
     window = np.floor((t - t[0]) / SUSPECT_WINDOW_S).astype(int)
@@ -117,6 +120,14 @@ def warnings_for(fit: LeastSquaresFit, analysis: ObservabilityAnalysis, C_b_m: n
     return out
 
 
+def walk_details(problem: JointProblem, method: NLS, h_samples: np.ndarray) -> dict:
+    """The moving hard iron's density and how far it walked (peak to peak per axis, magnetometer unit)."""
+    if not problem.walk:
+        return {}
+    return {"hard_iron_walk": {"density_per_sqrt_s": float(method.hard_iron_walk),
+                               "peak_to_peak": [float(v) for v in np.ptp(h_samples, axis=0)]}}
+
+
 def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, reduced: Reduced,
              method: NLS, total_s: float, cov_theta: np.ndarray, disturbance: FieldDisturbance) -> Calibration:
     """The Calibration of a converged solve: parameters, QR split, std (from `cov_theta`, the covariance of the
@@ -127,7 +138,8 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
     h, eps, m_i, tau = h.ravel(), eps.ravel(), m_i.ravel(), float(tau.item())
     C, Kg = qr_split(K)
     R = np.linalg.inv(S)
-    fit = residual_summary(problem, residual_matrix(problem, sol.x, sol.p), prep.session, R, h)
+    h_samples = hard_iron_at_samples(problem, sol.x, sol.p, prep.session) if problem.walk else h
+    fit = residual_summary(problem, residual_matrix(problem, sol.x, sol.p), prep.session, R, h_samples)
     # No a-posteriori variance-factor scaling: the noise levels are already calibrated (given, from
     # rests with their correlation, or re-weighted from the residuals' effective scale); the plain
     # factor counts correlated samples as independent and would undo that. It is reported in `fit`.
@@ -141,7 +153,8 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
         observability=Excitation.of(a),
         solver=SolverReport("nls", stats["return_status"], int(stats["iter_count"]), float(sol.seconds), float(total_s),
                             {"gauss_newton_decrement": stats["gauss_newton_decrement"], "passes": sol.passes,
-                             "nodes": int(grid.nodes), "stride": int(grid.stride), "loss": method.loss}),
+                             "nodes": int(grid.nodes), "stride": int(grid.stride), "loss": method.loss,
+                             **walk_details(problem, method, h_samples)}),
         noise=NoiseReport(float(prep.gyro_density), float(sol.sigma_mag), float(prep.sigma_mag), prep.noise_source,
                           disturbance),
         fit=fit,

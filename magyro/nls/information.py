@@ -32,12 +32,13 @@ class Reduced:
     D: ca.DM                  # the attitude block (sparse, block tridiagonal), full symmetric
     D_solver: ca.Linsol       # its sparse LDL factorisation
     Dinv_Hpt: np.ndarray      # D^-1 H_pt
+    block: int = 3            # unknowns per node: phi (3), and the hard iron's walk (3) when it moves
 
     def solve_D(self, b: np.ndarray) -> np.ndarray:
         return np.array(self.D_solver.solve(self.D, ca.DM(b))).reshape(np.shape(b))
 
 
-def reduce_hessian(H_triu: ca.DM, G: int) -> Reduced:
+def reduce_hessian(H_triu: ca.DM, G: int, block: int = 3) -> Reduced:
     """Eliminate the attitudes (after the first G unknowns) from triu(J^T J) by a sparse LDL
     of the block-tridiagonal attitude block: no dense N x N matrix is ever formed."""
     H_tt = np.array(ca.densify(H_triu[:G, :G]))
@@ -49,7 +50,7 @@ def reduce_hessian(H_triu: ca.DM, G: int) -> Reduced:
     solver.sfact(D)
     solver.nfact(D)
     Dinv_Hpt = np.array(solver.solve(D, ca.DM(H_tp.T)))
-    return Reduced(H_tt - H_tp @ Dinv_Hpt, H_tp, D, solver, Dinv_Hpt)
+    return Reduced(H_tt - H_tp @ Dinv_Hpt, H_tp, D, solver, Dinv_Hpt, block)
 
 
 def gauss_newton_decrement(red: Reduced, grad) -> float:
@@ -85,7 +86,7 @@ def information_covariance(problem: JointProblem, lin: Linearisation, p, session
     Given the `session`, the field disturbance it shows is counted as the solve counts it
     (`magyro.nls.disturbance`); without, the white-noise covariance (the Cramer-Rao bound of a simulation).
     """
-    reduced = reduce_hessian(problem.hessian_function(np.zeros(problem.n_x), p), problem.n_theta)
+    reduced = reduce_hessian(problem.hessian_function(np.zeros(problem.n_x), p), problem.n_theta, problem.B)
     lam = np.linalg.eigvalsh(reduced.information)
     if lam[0] <= lam[-1] * 1e-14:
         return np.full((N_REPORTED, N_REPORTED), np.inf)
@@ -128,24 +129,24 @@ def attitude_covariance_blocks(red: Reduced, cov_theta: np.ndarray | None = None
     """(N-1, 3, 3): the marginal covariance of each node's attitude correction phi_n, the calibration's
     uncertainty (`cov_theta`, default the inverse information) included: the diagonal blocks of
     D^-1 + (D^-1 H_pt) cov_theta (D^-1 H_pt)^T."""
-    A, B = tridiagonal_blocks(red.D)
-    inner = block_tridiagonal_inverse_diagonal(A, B)
-    W = red.Dinv_Hpt.reshape(len(A), 3, -1)
+    A, B = tridiagonal_blocks(red.D, red.block)
+    inner = block_tridiagonal_inverse_diagonal(A, B)[:, :3, :3]
+    W = red.Dinv_Hpt.reshape(len(A), red.block, -1)[:, :3]
     cov_theta = np.linalg.inv(red.information) if cov_theta is None else cov_theta
     return inner + np.einsum("nia,ab,njb->nij", W, cov_theta, W)
 
 
-def tridiagonal_blocks(D: ca.DM) -> tuple[np.ndarray, np.ndarray]:
-    """(diagonal 3x3 blocks (n, 3, 3), upper off-diagonal blocks D[k, k+1] (n-1, 3, 3)) of a sparse
+def tridiagonal_blocks(D: ca.DM, b: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """(diagonal b x b blocks (n, b, b), upper off-diagonal blocks D[k, k+1] (n-1, b, b)) of a sparse
     block-tridiagonal matrix, read from its nonzeros (no dense matrix)."""
     rows, cols = (np.asarray(v) for v in D.sparsity().get_triplet())
     values = np.array(D.nonzeros())
-    n = D.size1() // 3
-    A, B = np.zeros((n, 3, 3)), np.zeros((max(n - 1, 0), 3, 3))
-    on = rows // 3 == cols // 3
-    A[rows[on] // 3, rows[on] % 3, cols[on] % 3] = values[on]
-    up = cols // 3 == rows // 3 + 1
-    B[rows[up] // 3, rows[up] % 3, cols[up] % 3] = values[up]
+    n = D.size1() // b
+    A, B = np.zeros((n, b, b)), np.zeros((max(n - 1, 0), b, b))
+    on = rows // b == cols // b
+    A[rows[on] // b, rows[on] % b, cols[on] % b] = values[on]
+    up = cols // b == rows // b + 1
+    B[rows[up] // b, rows[up] % b, cols[up] % b] = values[up]
     return A, B
 
 

@@ -24,10 +24,13 @@ class NLS:
     huber_threshold: float = 3.0     # in noise sigmas
     reweight_noise: bool = True      # robust variance-component step on the magnetometer noise
     trajectory: bool = False         # keep the solved attitude at the nodes (Calibration.trajectory)
+    hard_iron_walk: float | None = None   # a moving hard iron: its random-walk density, magnetometer unit / sqrt(s)
 
     def __post_init__(self):
         if self.loss not in LOSSES:
             raise InputError(f"unknown loss '{self.loss}'; use l2 or huber")
+        if self.hard_iron_walk is not None and not self.hard_iron_walk > 0:
+            raise InputError(f"the hard iron's walk must be a positive density (unit / sqrt(s)), not {self.hard_iron_walk}")
         if self.stride is not None and self.stride < 1:
             raise InputError(f"stride must be at least 1, not {self.stride}")
 

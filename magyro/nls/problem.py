@@ -102,9 +102,19 @@ def unpack_globals(theta, g):
     return S, h, K, eps, m_i, tau, ca.reshape(parts["Winv"], 3, 3), parts["w_mag"]
 
 
-def data_layout(stride: int, L: int) -> list[tuple[str, int]]:
+def data_layout(stride: int, L: int, walk: bool = False) -> list[tuple[str, int]]:
     return [("Cbar", 9), ("qD", 4), ("w_int", 1), ("ymag", 3 * stride), ("wseg", stride), ("ymid", 3 * stride),
-            ("dt", stride * L), ("ya", 3 * stride * L), ("yb", 3 * stride * L)]
+            ("dt", stride * L), ("ya", 3 * stride * L), ("yb", 3 * stride * L)] + ([("w_walk", 1)] if walk else [])
+
+
+def global_part(g, name: str):
+    """The entry `name` of the global parameter vector g (GLOBAL_LAYOUT)."""
+    o = 0
+    for entry, n in GLOBAL_LAYOUT:
+        if entry == name:
+            return g[o : o + n]
+        o += n
+    raise KeyError(name)
 
 
 def huber_scaled(r, threshold: float):
@@ -115,12 +125,17 @@ def huber_scaled(r, threshold: float):
     return r * ca.if_else(outside, ca.sqrt(threshold * (2.0 * n_safe - threshold)) / n_safe, 1.0)
 
 
-def interval_residuals(theta, phi_k, phi_k1, g, d, stride: int, L: int, huber: float | None = None):
-    """Whitened residuals of one interval: `stride` magnetometer samples, then the gyro mismatch."""
+def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, huber: float | None = None, walk: bool = False):
+    """Whitened residuals of one interval: `stride` magnetometer samples, then the gyro mismatch, then (with a
+    moving hard iron, `walk`) its random-walk step. A node's state s is phi (3), then eta (3) when `walk`:
+    the hard iron over the interval from the node is h + field_scale * eta_k."""
     S, h, K, eps, m_i, tau, Winv, w_mag = unpack_globals(theta, g)
+    phi_k, phi_k1 = s_k[:3], s_k1[:3]
+    if walk:
+        h = h + global_part(g, "field_scale") * s_k[3:6]
     o = 0
     parts = {}
-    for name, n in data_layout(stride, L):
+    for name, n in data_layout(stride, L, walk):
         parts[name] = d[o : o + n]
         o += n
     Cbar = ca.reshape(parts["Cbar"], 3, 3)
@@ -142,6 +157,8 @@ def interval_residuals(theta, phi_k, phi_k1, g, d, stride: int, L: int, huber: f
             Q = quat_mul(Q, quat_exp(0.5 * (wa + wb) * dt + (dt * dt / 12.0) * ca.cross(wa, wb)))
     qE = quat_mul(quat_mul(quat_mul(quat_conj(Q), quat_conj(q_k)), parts["qD"]), quat_exp(phi_k1))
     res.append(ca.mtimes(Winv, 2.0 * qE[0] * qE[1:]) * parts["w_int"])
+    if walk:
+        res.append((s_k1[3:6] - s_k[3:6]) * parts["w_walk"])
     return ca.vertcat(*res)
 
 
@@ -165,14 +182,15 @@ class Linearisation:
 KERNEL_NAMES = ("interval_residuals", "interval_gradient", "interval_gauss_newton")
 
 
-def interval_kernels(n_theta: int, n_glob_p: int, n_data: int, stride: int, L: int, huber: float | None):
+def interval_kernels(n_theta: int, n_glob_p: int, n_data: int, stride: int, L: int, huber: float | None,
+                     walk: bool = False):
     """The three per-interval SX kernels: residuals; sum of squares and its gradient; Gauss-Newton blocks."""
     th = ca.SX.sym("theta", n_theta)
-    pk = ca.SX.sym("phi_k", 3)
-    pk1 = ca.SX.sym("phi_k1", 3)
+    pk = ca.SX.sym("s_k", node_size(walk))
+    pk1 = ca.SX.sym("s_k1", node_size(walk))
     g = ca.SX.sym("g", n_glob_p)
     d = ca.SX.sym("d", n_data)
-    r = interval_residuals(th, pk, pk1, g, d, stride, L, huber)
+    r = interval_residuals(th, pk, pk1, g, d, stride, L, huber, walk)
     JthT = ca.jacobian(r, th).T
     Jk = ca.jacobian(r, pk)
     Jk1 = ca.jacobian(r, pk1)
@@ -188,25 +206,38 @@ def interval_kernels(n_theta: int, n_glob_p: int, n_data: int, stride: int, L: i
     ]
 
 
-class JointProblem:
-    """The least squares on one grid shape; data and linearisation enter as parameters."""
+def node_size(walk: bool) -> int:
+    """Unknowns per node: the attitude correction phi (3), and the hard iron's walk eta (3) when it moves."""
+    return 6 if walk else 3
 
-    def __init__(self, grid: Grid, compiled: bool = True, estimate_time_offset: bool = True, huber: float | None = None):
+
+class JointProblem:
+    """The least squares on one grid shape; data and linearisation enter as parameters.
+
+    With `walk` the hard iron moves: h(t) = h + field_scale * eta_n over the interval from node n, eta a random
+    walk from eta_0 = 0 whose steps are weighted by the parameters' `w_walk` (1 / sqrt(q dt)).
+    """
+
+    def __init__(self, grid: Grid, compiled: bool = True, estimate_time_offset: bool = True, huber: float | None = None,
+                 walk: bool = False):
         self.grid = grid
+        self.walk = walk
+        self.walk_density: float | None = None   # set by the solve: the hard iron's random walk, unit / sqrt(s)
+        self.B = node_size(walk)
         self.n_theta = N_GLOBAL + (1 if estimate_time_offset else 0)
         n, s, L = grid.nodes, grid.stride, grid.substeps
         self.n_int = n - 1
         self.n_glob_p = sum(k for _, k in GLOBAL_LAYOUT)
-        self.n_data = sum(k for _, k in data_layout(s, L))
-        self.n_x = self.n_theta + 3 * self.n_int
-        self.n_res_per_interval = 3 * s + 3
+        self.n_data = sum(k for _, k in data_layout(s, L, walk))
+        self.n_x = self.n_theta + self.B * self.n_int
+        self.n_res_per_interval = 3 * s + 3 + (3 if walk else 0)
 
-        key = f"stride={s} substeps={L} theta={self.n_theta} huber={huber!r}"
+        key = f"stride={s} substeps={L} theta={self.n_theta} huber={huber!r}" + (" walk" if walk else "")
         cached = [load_cached_kernel(name, key) for name in KERNEL_NAMES] if compiled else [None]
         if all(k is not None for k in cached):  # compiled before: no symbolic build needed
             self.residual_kernel, self.gradient_kernel, self.gn_kernel = cached
         else:
-            kernels = interval_kernels(self.n_theta, self.n_glob_p, self.n_data, s, L, huber)
+            kernels = interval_kernels(self.n_theta, self.n_glob_p, self.n_data, s, L, huber, walk)
             if compiled:
                 kernels = compile_kernels(kernels, key)
             self.residual_kernel, self.gradient_kernel, self.gn_kernel = kernels
@@ -221,8 +252,8 @@ class JointProblem:
     # ------------------------------------------------------------------ MX graph
     def _split(self, x, p):
         theta = x[: self.n_theta]
-        phi = ca.reshape(x[self.n_theta :], 3, self.n_int)
-        phi_k = ca.horzcat(ca.MX.zeros(3, 1), phi[:, : self.n_int - 1])
+        phi = ca.reshape(x[self.n_theta :], self.B, self.n_int)
+        phi_k = ca.horzcat(ca.MX.zeros(self.B, 1), phi[:, : self.n_int - 1])
         g = p[: self.n_glob_p]
         D = ca.reshape(p[self.n_glob_p :], self.n_data, self.n_int)
         return theta, phi_k, phi, g, D
@@ -249,7 +280,7 @@ class JointProblem:
     def _gradient_graph(self):
         x, p, args = self._symbols
         ssq, g_t, g_l, g_r = self.gradient_kernel.map(self.n_int)(*args)
-        grad_phi = ca.horzcat(g_l[:, 1:], ca.MX.zeros(3, 1)) + g_r
+        grad_phi = ca.horzcat(g_l[:, 1:], ca.MX.zeros(self.B, 1)) + g_r
         grad = ca.vertcat(ca.sum2(g_t), ca.vec(grad_phi))
         grad_f = ca.Function("nlp_grad_f", [x, p], [0.5 * ca.sum2(ssq), grad], ["x", "p"], ["f", "grad_f_x"])
         return ca.Function("gradient", [x, p], [grad]), grad_f
@@ -263,11 +294,12 @@ class JointProblem:
         x, p, args = self._symbols
         JthT, CL, CR, DL, DR, O = self.gn_kernel.map(self.n_int)(*args)
         H_tt = ca.mtimes(JthT, JthT.T)
-        H_tp = ca.horzcat(CL[:, 3:], ca.MX.zeros(self.n_theta, 3)) + CR
-        H_pp = ca.horzcat(DL[:, 3:], ca.MX.zeros(3, 3)) + DR
-        assert H_tp.shape[1] == 3 * self.n_int
+        B = self.B
+        H_tp = ca.horzcat(CL[:, B:], ca.MX.zeros(self.n_theta, B)) + CR
+        H_pp = ca.horzcat(DL[:, B:], ca.MX.zeros(B, B)) + DR
+        assert H_tp.shape[1] == B * self.n_int
         values = ca.vertcat(ca.vec(ca.densify(H_tt)), ca.vec(ca.densify(H_tp)), ca.vec(ca.densify(H_pp)), ca.vec(ca.densify(O)))
-        sp, perm = hessian_pattern(self.n_int, self.n_theta)
+        sp, perm = hessian_pattern(self.n_int, self.n_theta, self.B)
         H = ca.MX(sp, values[perm])
         lam_f = ca.MX.sym("lam_f")
         lam_g = ca.MX.sym("lam_g", 0)
@@ -282,7 +314,8 @@ class JointProblem:
 
     # ---------------------------------------------------------------- numbers in
     def parameters(self, lin: Linearisation, y_mag, sigma_mag: float, sigma_gyro_density: float,
-                   t_gyro_s=None, gyro_rad_s=None, t_mag_s=None, tau0_s: float = 0.0) -> np.ndarray:
+                   t_gyro_s=None, gyro_rad_s=None, t_mag_s=None, tau0_s: float = 0.0,
+                   walk_density: float | None = None) -> np.ndarray:
         """Flat parameter vector: the linearisation, the weights and the data on the grid.
 
         With a time offset tau0 the raw gyro at each magnetometer stamp minus
@@ -312,7 +345,9 @@ class JointProblem:
             "ya": g_.gyro_a.reshape(n_int, 3 * s * L),
             "yb": g_.gyro_b.reshape(n_int, 3 * s * L),
         }
-        data = np.concatenate([cols[k] for k, _ in data_layout(s, L)], axis=1)  # n_int x n_data
+        if self.walk:   # walk_density: the hard iron's random walk, magnetometer unit / sqrt(s); eta is in field_scale
+            cols["w_walk"] = (lin.field_scale / (walk_density * np.sqrt(g_.interval_s)))[:, None]
+        data = np.concatenate([cols[k] for k, _ in data_layout(s, L, self.walk)], axis=1)  # n_int x n_data
         return np.concatenate([gvec, data.reshape(-1)])
 
     # ----------------------------------------------------------------- the solve
@@ -347,38 +382,38 @@ class JointProblem:
         return self._solver
 
 
-def hessian_pattern(n_int: int, G: int = N_GLOBAL):
+def hessian_pattern(n_int: int, G: int = N_GLOBAL, B: int = 3):
     """Sparsity of triu(J^T J) and, per nonzero, its index in the stacked block values.
 
-    Stacked values: vec(H_tt) (G x G), vec(H_tp) (G x 3n), vec(H_pp) (3 x 3n,
-    diagonal blocks side by side), vec(O) (3 x 3n, block k couples node k to k+1).
+    Stacked values: vec(H_tt) (G x G), vec(H_tp) (G x Bn), vec(H_pp) (B x Bn,
+    diagonal blocks side by side), vec(O) (B x Bn, block k couples node k to k+1).
     Column of node n (1..n_int), component c: the G theta rows, then node n-1's
-    three rows (n >= 2), then node n's rows 0..c.
+    B rows (n >= 2), then node n's rows 0..c. B is the node's size (3, or 6 with a moving hard iron).
     """
-    o_tp, o_pp = G * G, G * G + G * 3 * n_int
-    o_o = o_pp + 9 * n_int
+    o_tp, o_pp = G * G, G * G + G * B * n_int
+    o_o = o_pp + B * B * n_int
     jt, it = np.triu_indices(G)[::-1]  # column-major upper triangle: for each column j, rows 0..j
     order = np.lexsort((it, jt))
     rows_t, perm_t = it[order], it[order] + G * jt[order]
-    node = np.repeat(np.arange(1, n_int + 1), 3)
-    comp = np.tile(np.arange(3), n_int)
-    col = 3 * (node - 1) + comp                              # column within the node block
-    slots = np.arange(G + 6)                                 # theta rows, off-diagonal, diagonal
-    r = np.empty((len(col), G + 6), dtype=np.int64)
+    node = np.repeat(np.arange(1, n_int + 1), B)
+    comp = np.tile(np.arange(B), n_int)
+    col = B * (node - 1) + comp                              # column within the node block
+    slots = np.arange(G + 2 * B)                             # theta rows, off-diagonal, diagonal
+    r = np.empty((len(col), G + 2 * B), dtype=np.int64)
     q = np.empty_like(r)
     r[:, :G] = slots[:G]
     q[:, :G] = o_tp + slots[:G] + G * col[:, None]
-    a = np.arange(3)
-    r[:, G:G + 3] = G + 3 * (node[:, None] - 2) + a
-    q[:, G:G + 3] = o_o + a + 3 * col[:, None]
-    r[:, G + 3:] = G + 3 * (node[:, None] - 1) + a
-    q[:, G + 3:] = o_pp + a + 3 * col[:, None]
+    a = np.arange(B)
+    r[:, G:G + B] = G + B * (node[:, None] - 2) + a
+    q[:, G:G + B] = o_o + a + B * col[:, None]
+    r[:, G + B:] = G + B * (node[:, None] - 1) + a
+    q[:, G + B:] = o_pp + a + B * col[:, None]
     valid = np.ones_like(r, dtype=bool)
-    valid[:, G:G + 3] = (node >= 2)[:, None]
-    valid[:, G + 3:] = a[None, :] <= comp[:, None]
+    valid[:, G:G + B] = (node >= 2)[:, None]
+    valid[:, G + B:] = a[None, :] <= comp[:, None]
     counts = valid.sum(axis=1)
     rows = np.concatenate([rows_t, r[valid]])
     perm = np.concatenate([perm_t, q[valid]])
     colptr = np.concatenate([[0], np.cumsum(np.arange(1, G + 1)), G * (G + 1) // 2 + np.cumsum(counts)])
-    n_x = G + 3 * n_int
+    n_x = G + B * n_int
     return ca.Sparsity(n_x, n_x, colptr.tolist(), rows.tolist()), perm.tolist()

@@ -40,7 +40,7 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     grid, lin, problem = build_problem(prep, options, method)
     gate_warnings = predicted_accuracy_gate(problem, prep, lin, options)
     sol = solve_passes(problem, prep, lin, method)
-    reduced = reduce_hessian(problem.hessian_function(sol.x, sol.p), problem.n_theta)
+    reduced = reduce_hessian(problem.hessian_function(sol.x, sol.p), problem.n_theta, problem.B)
     decrement = gauss_newton_decrement(reduced, np.array(problem.gradient_function(sol.x, sol.p)).ravel())
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT) and not prep.analysis.full_rank:
         raise ObservabilityError(   # forced past the gate, and the data indeed do not pin a solution down

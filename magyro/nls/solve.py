@@ -141,14 +141,16 @@ def build_problem(prep: Prepared, options: Options, method: NLS,
     grid = build_grid(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, method.stride or default_stride(s))
     lin = linearise(prep, grid, options, search_lag)
     problem = JointProblem(grid, compiled=method.compiled, estimate_time_offset=options.estimate_time_offset,
-                           huber=method.huber)
+                           huber=method.huber, walk=method.hard_iron_walk is not None)
+    problem.walk_density = method.hard_iron_walk
     return grid, lin, problem
 
 
 def problem_parameters(problem: JointProblem, prep: Prepared, lin: Linearisation, sigma_mag: float, tau0_s: float) -> np.ndarray:
     """The problem's parameter vector: linearisation point, noise weights and the session's data."""
     s = prep.session
-    return problem.parameters(lin, s.mag, sigma_mag, prep.gyro_density, s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, tau0_s)
+    return problem.parameters(lin, s.mag, sigma_mag, prep.gyro_density, s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, tau0_s,
+                              walk_density=problem.walk_density)
 
 
 def magnetometer_noise_factor(problem: JointProblem, x, p) -> float:
@@ -159,14 +161,25 @@ def magnetometer_noise_factor(problem: JointProblem, x, p) -> float:
     correlated model error (a field not quite homogeneous) counts as what it
     is: fewer independent samples.
     """
-    r = residual_matrix(problem, x, p)[:, :-3].reshape(-1, 3)[problem.grid.sample_mask]  # time-ordered samples
+    r = magnetometer_residuals(residual_matrix(problem, x, p), problem.grid.stride)[problem.grid.sample_mask]
     scale = np.sqrt(np.median(np.sum(r**2, axis=1)) / CHI2_3DOF_MEDIAN)
     return float(scale * np.sqrt(noise.integrated_autocorrelation_time(r)))
 
 
 def residual_matrix(problem: JointProblem, x, p) -> np.ndarray:
-    """Whitened residuals, one row per interval: the magnetometer samples, then the gyro mismatch."""
+    """Whitened residuals, one row per interval: the magnetometer samples, then the gyro mismatch (then the hard
+    iron's walk step, when it moves)."""
     return np.array(problem.residual_function(x, p)).reshape(problem.n_int, problem.n_res_per_interval)
+
+
+def magnetometer_residuals(r: np.ndarray, stride: int) -> np.ndarray:
+    """The magnetometer residuals of a residual matrix, one row per segment in time order, (n_int stride, 3)."""
+    return r[:, : 3 * stride].reshape(-1, 3)
+
+
+def gyro_residuals(r: np.ndarray, stride: int) -> np.ndarray:
+    """The gyro mismatch of each interval, (n_int, 3)."""
+    return r[:, 3 * stride : 3 * stride + 3]
 
 
 @dataclass

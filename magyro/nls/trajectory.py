@@ -14,7 +14,7 @@ from magyro.session import Session
 
 def solved_attitudes(problem: JointProblem, lin: Linearisation, x: np.ndarray) -> np.ndarray:
     """C_m_i at every node, (N, 3, 3): the nominal attitude turned by the solved correction (node 0 the gauge, I)."""
-    phi = np.vstack([np.zeros(3), x[problem.n_theta:].reshape(-1, 3)])
+    phi = np.vstack([np.zeros(3), x[problem.n_theta:].reshape(-1, problem.B)[:, :3]])
     return lin.C_m_i_nominal @ so3.exp_so3(phi)
 
 

@@ -164,6 +164,10 @@ class Calibration:
             factor = float(np.median(s.bias_deg_s / np.maximum(self.std_white.bias_deg_s, 1e-300)))
             lines.append(f"the field wanders by {100 * disturbance.std_fraction:.2f} % along the path (correlation "
                          f"{disturbance.correlation_time_s:.1f} s); the std counts it ({factor:.1f}x the white-noise std)")
+        walk = self.solver.details.get("hard_iron_walk")
+        if walk:
+            lines.append(f"hard iron moving (walk {walk['density_per_sqrt_s']:g} {self.mag_unit}/sqrt(s)): peak to peak "
+                         + "  ".join(f"{v:.3g}" for v in walk["peak_to_peak"]) + f" {self.mag_unit}")
         if self.rests is not None:
             lines.append(f"bias from {self.rests.seconds:.1f} s of rest (deg/s)  "
                          + "  ".join(f"{v:+8.4f}" for v in self.rests.bias_deg_s))
