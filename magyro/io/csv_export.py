@@ -139,15 +139,7 @@ def import_csv(path, column_map: dict | None, gyro_unit: str, mag_unit: str,
     raw = _read_csv_any_delimiter(path, delimiter, skip_rows, header_line)
     mapping = _resolve_column_map(path, raw, column_map)
 
-    t_raw = _time_values(path, raw[mapping[TIME_COLUMN]], mapping[TIME_COLUMN])
-    table = pd.DataFrame({TIME_COLUMN: t_raw})
-    for name, source in mapping.items():
-        if name != TIME_COLUMN:
-            table[name] = _numbers(path, raw[source], source)
-    for name in ACC_COLUMNS:
-        if name in table:
-            table[name] = table[name] * acc_scale
-    table = _merge_rows(path, table)
+    table = _sensor_file_samples(path, raw, mapping, acc_scale)
     t_first = table[TIME_COLUMN].iloc[0]
     table[TIME_COLUMN] = (table[TIME_COLUMN] - t_first).astype(float) * time_scale
     _check_time_unit(path, table, time_unit)
