@@ -86,18 +86,25 @@ def information_covariance(problem: JointProblem, lin: Linearisation, p, session
     Given the `session`, the field disturbance it shows is counted as the solve counts it
     (`magyro.nls.disturbance`); without, the white-noise covariance (the Cramer-Rao bound of a simulation).
     """
+    return covariance_and_disturbance(problem, lin, p, session)[0]
+
+
+def covariance_and_disturbance(problem: JointProblem, lin: Linearisation, p, session=None):
+    """(`information_covariance`, the field disturbance measured from `session`, or None without one)."""
     reduced = reduce_hessian(problem.hessian_function(np.zeros(problem.n_x), p), problem.n_theta, problem.B)
     lam = np.linalg.eigvalsh(reduced.information)
     if lam[0] <= lam[-1] * 1e-14:
-        return np.full((N_REPORTED, N_REPORTED), np.inf)
+        return np.full((N_REPORTED, N_REPORTED), np.inf), None
+    disturbance = None
     if session is None:
         cov_theta = np.linalg.inv(reduced.information)
     else:
         from magyro.nls.disturbance import disturbance_covariance
 
-        cov_theta = disturbance_covariance(problem, np.zeros(problem.n_x), p, reduced, lin.C_m_i_nominal, session)[0]
+        cov_theta, disturbance = disturbance_covariance(problem, np.zeros(problem.n_x), p, reduced,
+                                                        lin.C_m_i_nominal, session)
     C0, _ = qr_split(lin.K0)
-    return propagate(problem, np.zeros(problem.n_theta), p[: problem.n_glob_p], cov_theta, C0)
+    return propagate(problem, np.zeros(problem.n_theta), p[: problem.n_glob_p], cov_theta, C0), disturbance
 
 
 def information_std(problem: JointProblem, lin: Linearisation, p, session=None) -> dict:
@@ -107,6 +114,11 @@ def information_std(problem: JointProblem, lin: Linearisation, p, session=None) 
 
 
 def predicted_std(prep: Prepared, options: Options | None = None, method: NLS | None = None) -> dict:
+    """`predicted_std_and_disturbance` without the disturbance."""
+    return predicted_std_and_disturbance(prep, options, method)[0]
+
+
+def predicted_std_and_disturbance(prep: Prepared, options: Options | None = None, method: NLS | None = None):
     """One-sigma accuracy this recording can give, before solving.
 
     The Gauss-Newton (Fisher) information of the joint problem at the initial
@@ -122,7 +134,8 @@ def predicted_std(prep: Prepared, options: Options | None = None, method: NLS | 
     options, method = options or Options(), method or NLS()
     grid, lin, problem = build_problem(prep, options, method, search_lag=False)
     p = problem_parameters(problem, prep, lin, prep.sigma_mag, lin.time_offset_s)
-    return information_std(problem, lin, p, prep.session)
+    cov, disturbance = covariance_and_disturbance(problem, lin, p, prep.session)
+    return std_from_covariance(cov), disturbance
 
 
 def attitude_covariance_blocks(red: Reduced, cov_theta: np.ndarray | None = None) -> np.ndarray:

@@ -30,7 +30,7 @@ import numpy as np
 from magyro.errors import InputError, MagyroError, ObservabilityError
 from magyro.front import ellipsoid
 from magyro.front.prepare import Prepared, moving_session, prepare
-from magyro.nls.information import predicted_std
+from magyro.nls.information import predicted_std_and_disturbance
 from magyro.nls.method import NLS
 from magyro.nls.solve import default_stride
 from magyro.observability.advice import weak_directions
@@ -83,7 +83,7 @@ def observe(session: Session, options: Options | None = None, targets: Targets |
     cov = coverage(s.t_gyro_s, rates, field_m, reference)
 
     std, prediction = predict(prep, analysis, options, method)
-    verdict, reason = judge(analysis, problem, std, targets, options.max_std)
+    verdict, reason = judge(analysis, problem, std, targets, options.max_std, prediction.get("field_disturbance"))
     weak, advice = weak_directions(analysis, verdict=verdict)
     if problem is not None and not any("all three" in a for a in advice):
         advice = ["Turn the device through large angles about all three of its axes, so that the field sweeps "
@@ -209,21 +209,26 @@ def predict(prep: Prepared | None, analysis: ObservabilityAnalysis, options: Opt
     stride = prediction_stride(prep.session, method)
     start = time.perf_counter()
     try:
-        std = predicted_std(prep, options, method=dataclasses.replace(method, stride=stride))
+        std, disturbance = predicted_std_and_disturbance(prep, options, method=dataclasses.replace(method, stride=stride))
     except (MagyroError, np.linalg.LinAlgError) as e:
         if analysis.full_rank:
             raise
         return None, {"stride": stride, "note": f"no prediction for a rank-deficient session ({e})"}
     info = {"stride": stride, "seconds": time.perf_counter() - start,
             "method": "Gauss-Newton information of the joint problem at the initial estimate, trajectory "
-                      "marginalised, noise levels of the session"}
+                      "marginalised, noise levels of the session, the field's wander measured and counted"}
+    if disturbance is not None:
+        info["field_disturbance"] = disturbance.to_dict()
     if not all(np.all(np.isfinite(getattr(std, f.name))) for f in dataclasses.fields(std)):
         info["note"] = "the information is singular: null marks what this recording cannot determine"
     return std, info
 
 
+ROOM_LIMITS_ABOVE = 0.005   # a field that wanders by more than 0.5 % along the path is named as a limit
+
+
 def judge(analysis: ObservabilityAnalysis, ellipsoid_problem: str | None, std: Std | None,
-          targets: Targets, bounds: StdBounds = StdBounds()) -> tuple[str, str]:
+          targets: Targets, bounds: StdBounds = StdBounds(), disturbance: dict | None = None) -> tuple[str, str]:
     """The verdict and its reason in plain words: insufficient exactly when the solve would refuse the session."""
     if ellipsoid_problem is not None:
         return "insufficient", (f"{ellipsoid_problem}, so the magnetometer's soft/hard iron cannot be fitted; "
@@ -244,8 +249,12 @@ def judge(analysis: ObservabilityAnalysis, ellipsoid_problem: str | None, std: S
         if not v <= target:
             above.append(f"{label} {fmt(v)} {unit} (target {target:g})")
     if above:
+        room = (disturbance or {}).get("std_fraction", 0.0)
+        fix = ("record longer or with larger, faster turns" if room <= ROOM_LIMITS_ABOVE else
+               f"the field wanders by {100 * room:.1f} % along the path, which the std counts: record away from iron "
+               "and magnets (or in a smaller volume), longer, or with larger, faster turns")
         return "marginal", ("all 12 gyro parameters are excited, but the predicted one-sigma is above target for "
-                            + "; ".join(above) + ": record longer or with larger, faster turns")
+                            + "; ".join(above) + ": " + fix)
     ratio, label, v, unit, target = max(worst)
     return "sufficient", (f"all 12 gyro parameters are excited and every predicted one-sigma is within its "
                           f"target (closest: {label} {fmt(v)} {unit} of {target:g})")
