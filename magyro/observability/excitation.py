@@ -32,7 +32,7 @@ from magyro.front import ellipsoid
 from magyro.front.prepare import Prepared, moving_session, prepare
 from magyro.nls.information import predicted_std_and_disturbance
 from magyro.nls.method import NLS
-from magyro.nls.solve import default_stride
+from magyro.nls.solve import NODE_RATE_HZ, default_stride
 from magyro.observability.advice import weak_directions
 from magyro.observability.gate import (WELL_CONDITIONED, accuracy_shortfalls, accuracy_summary, ObservabilityAnalysis, cumulative_noise_matrix,
                                        directional_rank)
@@ -45,7 +45,7 @@ from magyro.result.reported import plausible_gyro
 from magyro.session import Session
 
 CHECKPOINTS = 200                 # cumulative integral evaluated at this many times
-PREDICTION_NODE_RATE_HZ = 20.0    # attitude nodes per second of the accuracy prediction (see docs)
+PREDICTION_NODE_RATE_HZ = NODE_RATE_HZ   # the solve's node rate: the prediction uses the solve's compiled kernels
 
 
 def observe(session: Session, options: Options | None = None, targets: Targets | None = None,
