@@ -40,12 +40,16 @@ def calibrate(session: Session, options: Options | None = None, method=None) -> 
     calibrated alone and compared (`Calibration.consistency`, and a warning
     when they disagree); that needs the least squares.
     """
+    from magyro.progress import step
+
     options = options or Options()
     method = method or method_named("nls")
     if options.split_check and method.name != "nls":
         raise InputError("--split-check needs --method nls (it compares two least-squares solves)")
+    step("checking the recording")
     session, recording = checked_recording(session, options)
     cal = method.calibrate(session, replace(options, split_check=False))
+    step("checking that the result explains the recording")
     cal.recording = recording
     cal.warnings[:0] = [f"recording: {f.message}; {f.fix}" for f in recording.warnings if not f.repaired]
     check_the_result_explains_the_data(cal, session, options, method)
@@ -103,8 +107,12 @@ def observe(session: Session, options: Options | None = None, targets=None, meth
     """The excitation report of `magyro observe`: rank, weak directions, coverage, predicted accuracy; no solve."""
     from magyro.observability import observe as excitation_report
 
+    from magyro.progress import step
+
     options = options or Options()
+    step("checking the recording")
     session, recording = checked_recording(session, options)
+    step("the excitation and the accuracy it predicts")
     return replace(excitation_report(session, options, targets, method=method), recording=recording)
 
 
@@ -121,6 +129,7 @@ def solve_file(path, options: Options | None = None, method: str = "nls", method
     from magyro.io import check_outputs
     check_outputs([path], [output, history, history_plot, trajectory])  # before any work: no input overwritten, all writable
     from magyro.io import load_session, write_text_atomically
+    from magyro.progress import step
 
     wants_history = history is not None or history_plot is not None
     if method == "nls" and wants_history:
@@ -134,6 +143,7 @@ def solve_file(path, options: Options | None = None, method: str = "nls", method
     options = options or Options()
     if options.split_check and method != "nls":
         raise InputError("--split-check needs --method nls (it compares two least-squares solves)")
+    step(f"reading {Path(path).name}")
     session = load_session(path, gyro_unit=gyro_unit, mag_unit=mag_unit)
     if wants_history:
         cal, hist = chosen.calibrate_with_history(session, options)

@@ -28,10 +28,14 @@ def fail(message: str, code: int) -> None:
     raise typer.Exit(code)
 
 
-def run_guarded(action):
-    """Run `action`, turning magyro errors and I/O failures into a message and an exit code."""
+def run_guarded(action, progress: bool = True):
+    """Run `action`, turning magyro errors and I/O failures into a message and an exit code; its steps show as a
+    live line on stderr when that is a terminal and `progress` (off with -q)."""
+    from magyro.progress import showing
+
     try:
-        return action()
+        with showing(enabled=progress):
+            return action()
     except MagyroError as e:
         fail(str(e), e.exit_code)
     except OSError as e:
@@ -104,7 +108,7 @@ def solve(
             if trajectory is not None:
                 typer.echo(f"attitude trajectory ({len(cal.trajectory.t_s)} nodes) written to {trajectory}")
 
-    run_guarded(action)
+    run_guarded(action, progress=not quiet)
 
 
 @app.command()
@@ -152,7 +156,7 @@ def montecarlo(
                     typer.echo(f"written to {path}")
         return result
 
-    result = run_guarded(action)
+    result = run_guarded(action, progress=False)   # its own bar
     if not result.all_succeeded:
         fail(f"{result.failed_count} of {runs * len(result.methods)} runs failed (seeds and messages above and in the JSON); "
              "the table holds the successful ones", 1)
@@ -284,7 +288,7 @@ def validate_command(
                 if path is not None:
                     typer.echo(f"{what} written to {path}")
 
-    run_guarded(action)
+    run_guarded(action, progress=not quiet)
 
 
 @app.command("observe")
@@ -328,7 +332,7 @@ def observe_command(
                     typer.echo(f"{what} written to {path}")
         return report
 
-    report = run_guarded(action)
+    report = run_guarded(action, progress=not quiet)
     if report.verdict == "insufficient":
         fail(f"insufficient excitation: {report.reason}. " + " ".join(report.advice), 3)
 
@@ -361,7 +365,7 @@ def check_command(
         if check.errors:
             raise InputError(f"{session}: the recording is unusable as it is: {check.error_message()}")
 
-    run_guarded(action)
+    run_guarded(action, progress=not quiet)
 
 
 # --------------------------------------------------------------------------- apply, export (issue 12)
@@ -428,7 +432,7 @@ def report_command(
             typer.echo(report.verdict)
             typer.echo(f"report written to {output}")
 
-    run_guarded(action)
+    run_guarded(action, progress=False)   # its own lines
 
 
 def main():

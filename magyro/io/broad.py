@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from magyro.progress import step
 from magyro.errors import InputError, one_line
 from magyro.io.atomic import check_outputs
 from magyro.io.checks import session_from_table
@@ -102,6 +103,7 @@ def convert_broad(path, output, *, movement: bool = False, rest_s: float = 3.0,
     file or cannot be written is refused before the trial is read.
     """
     check_outputs([path], [output])
+    step(f"reading {Path(path).name}")
     session = import_broad_movement(path, rest_s) if movement else import_broad(path)
     session = decimate(cut(session, start_s, end_s), decimate_by)
     write_imported(session, output, compression_level=compression_level)

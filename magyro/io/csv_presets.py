@@ -222,8 +222,11 @@ def convert_csv(sources, output, *, preset: str | None = None, column_map_items=
     from magyro.io.cutting import cut
     from magyro.io.session_file import write_imported
 
+    from magyro.progress import step
+
     sources = [Path(s) for s in sources]
     check_outputs(sources, [output])
+    step("reading " + ", ".join(s.name for s in sources))
     if preset is not None:
         given = [name for name, value in (("--gyro-unit", gyro_unit), ("--mag-unit", mag_unit),
                                           ("--map", column_map_items)) if value]

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from magyro.progress import step
 from magyro.errors import InputError, one_line
 from magyro.io.atomic import check_outputs
 from magyro.io.checks import MIN_SAMPLES, session_from_table
@@ -105,6 +106,7 @@ def convert_rosbag(path, output, imu_topic: str | None = None, mag_topic: str | 
     Returns the written session.
     """
     check_outputs([path], [output])
+    step(f"reading {Path(path).name}")
     session = import_rosbag(path, imu_topic=imu_topic, mag_topic=mag_topic)
     write_imported(session, output, compression_level=compression_level)
     return session

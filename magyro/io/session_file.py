@@ -155,6 +155,9 @@ def write_imported(session: Session, path, compression_level: int | None = None)
     zstd makes the smallest files (the shipped data/broad-*.parquet use level 19);
     `compression_level` None is pyarrow's default level.
     """
+    from magyro.progress import step
+
+    step(f"writing {Path(path).name}")
     write_session(session, path, compression="zstd", compression_level=compression_level)
 
 

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from magyro.progress import step
 from magyro.errors import InputError, one_line
 from magyro.io.atomic import check_outputs
 from magyro.io.checks import MIN_SAMPLES, session_from_table
@@ -135,6 +136,7 @@ def convert_ulog(path, output, instance: int = 0, topics=None,
     Returns the written session.
     """
     check_outputs([path], [output])
+    step(f"reading {Path(path).name}")
     session = import_ulog(path, instance=instance, topics=topics)
     write_imported(session, output, compression_level=compression_level)
     return session

@@ -26,6 +26,7 @@ from magyro.nls.disturbance import disturbance_covariance
 from magyro.nls.trajectory import attitude_trajectory, solved_attitudes
 from magyro.observability.gate import accuracy_gate, accuracy_shortfalls, accuracy_summary, needs_accuracy_check
 from magyro.options import Options
+from magyro.progress import step
 from magyro.result.calibration import Calibration
 from magyro.session import Session
 
@@ -36,10 +37,14 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     """Calibrate gyro and magnetometer from one session (the joint least squares)."""
     options, method = options or Options(), method or NLS()
     t_start = time.perf_counter()
+    step("rests, noise levels and the magnetometer's ellipsoid")
     prep = prepare(session, options)
+    step("the linear estimate and the least-squares problem")
     grid, lin, problem = build_problem(prep, options, method)
     gate_warnings = predicted_accuracy_gate(problem, prep, lin, options)
+    step(f"solving the least squares ({problem.n_x} unknowns, IPOPT)")
     sol = solve_passes(problem, prep, lin, method)
+    step("the uncertainty: information and the room's field")
     reduced = reduce_hessian(problem.hessian_function(sol.x, sol.p), problem.n_theta, problem.B)
     decrement = gauss_newton_decrement(reduced, np.array(problem.gradient_function(sol.x, sol.p)).ravel())
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT) and not prep.analysis.full_rank:

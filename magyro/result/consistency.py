@@ -143,7 +143,10 @@ def split_check(moving: Session, full: Calibration, options, calibrate) -> Split
     spans = half_spans_s(moving)
     opts = half_options(options, full)
     halves, failures = [], []
+    from magyro.progress import step
+
     for k, (t0, t1) in enumerate(spans):
+        step(f"split-half check: the {('first', 'second')[k]} half alone ({t0:.0f}-{t1:.0f} s)")
         try:
             halves.append(calibrate(moving.within(t0, t1), opts))
         except MagyroError as exc:

@@ -1,0 +1,71 @@
+"""What long work is doing, for whoever shows it: `step("solving")` anywhere, `showing(...)` on the command line.
+
+The library only names its steps (`step`); it prints nothing. A caller that wants to see them
+installs a reporter for a block of work:
+
+    with magyro.progress.reporting(print):                  # any callable taking the step's text
+        magyro.calibrate(session)
+
+`magyro solve`, `check`, `observe`, `report` and the importers use `showing()`, which on a
+terminal keeps one live line on stderr (a spinner, the step, the seconds so far; rich when it is
+installed, a plain line otherwise) and shows nothing when stderr is not a terminal or with -q.
+"""
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import sys
+import time
+from typing import Callable
+
+_reporter: contextvars.ContextVar[Callable[[str], None] | None] = contextvars.ContextVar("magyro_progress", default=None)
+
+
+def step(text: str) -> None:
+    """Say that the work now does `text` (a few words, e.g. "solving the least squares")."""
+    reporter = _reporter.get()
+    if reporter is not None:
+        reporter(text)
+
+
+@contextlib.contextmanager
+def reporting(reporter: Callable[[str], None] | None):
+    """Within the block, every `step` goes to `reporter` (None: nowhere)."""
+    token = _reporter.set(reporter)
+    try:
+        yield
+    finally:
+        _reporter.reset(token)
+
+
+@contextlib.contextmanager
+def showing(enabled: bool = True, stream=None):
+    """The steps of the block as one live line on `stream` (stderr), on a terminal only."""
+    stream = stream or sys.stderr
+    if not (enabled and hasattr(stream, "isatty") and stream.isatty()):
+        with reporting(None):
+            yield
+        return
+    try:
+        from rich.console import Console
+        from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+    except ImportError:
+        with reporting(_plain_line(stream)):
+            yield
+        stream.write("\r\033[K")
+        return
+    with Progress(SpinnerColumn(), TimeElapsedColumn(), TextColumn("{task.description}"),
+                  console=Console(file=stream), transient=True) as live:
+        task = live.add_task("magyro", total=None)
+        with reporting(lambda text: live.update(task, description=text)):
+            yield
+
+
+def _plain_line(stream) -> Callable[[str], None]:
+    start = time.perf_counter()
+
+    def show(text: str) -> None:
+        stream.write(f"\r\033[Kmagyro: {text} ({time.perf_counter() - start:.0f} s)")
+        stream.flush()
+
+    return show
