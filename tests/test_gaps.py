@@ -137,3 +137,21 @@ def test_a_30_s_hole_loses_data_and_the_std_says_so(broad02):
     assert grown[2] > 1.2, grown
     assert np.all(np.abs(d["K_g_diag_ppm"]) < 3.5e6 * np.diag(cal.std.K_g)), d
     assert np.all(np.abs(d["bias_deg_s"]) < 0.05), d
+
+
+def test_the_lag_search_of_a_long_recording_uses_its_most_turning_span():
+    """The golden-section lag search costs 18 fits of eq. (13); on a long recording it runs on the 300 s in which the
+    gyro turns most (1 h at 100 Hz: 4.9 s -> ~0.5 s), the final fit on everything. A quiet hour with a burst of
+    turning in it searches the burst; a 100 s recording is searched whole."""
+    from magyro.front.initial import SEARCH_SPAN_S, search_span
+
+    t = np.arange(0.0, 3600.0, 0.01)
+    gyro = np.zeros((len(t), 3))
+    burst = (t > 2000.0) & (t < 2200.0)
+    gyro[burst, 2] = 1.0
+    g, m = search_span(t, gyro, t)
+    inside = (t[g][0] <= t) & (t <= t[g][-1])
+    assert np.sum(burst & inside) >= 0.99 * np.sum(burst) and t[g][-1] - t[g][0] <= SEARCH_SPAN_S + 0.01
+    assert (g, m) != (slice(None), slice(None)) and np.array_equal(t[g], t[m])
+    short = t < 100.0
+    assert search_span(t[short], gyro[short], t[short]) == (slice(None), slice(None))
