@@ -31,13 +31,16 @@ disturbance is no larger across the field than along it.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import casadi as ca
 import numpy as np
 
 from magyro import so3
 from magyro.front.ellipsoid import calibrated_field
 from magyro.nls.information import Reduced
-from magyro.nls.problem import GLOBAL_LAYOUT, GLOBAL_SLICES, JointProblem
+from magyro.nls.hard_iron import hard_iron_at_samples
+from magyro.nls.problem import GLOBAL_SLICES, JointProblem, global_number
 from magyro.result.parts import FieldDisturbance
 from magyro.session import Session
 
@@ -56,10 +59,6 @@ def disturbance_covariance(problem: JointProblem, x: np.ndarray, p: np.ndarray, 
     S, h, K, eps, m_i, tau = (np.array(v) for v in problem.physical_function(theta, g))
     info_inv = np.linalg.inv(reduced.information)
     if problem.walk:   # the field's magnitude with the moving hard iron taken out: its walk is modelled
-        from dataclasses import replace
-
-        from magyro.nls.hard_iron import hard_iron_at_samples
-
         session = replace(session, mag=session.mag - (hard_iron_at_samples(problem, x, p, session) - h.ravel()))
     found = measured_disturbance(problem, theta, g, info_inv, session)
     if found.std_fraction == 0.0:
@@ -120,14 +119,14 @@ def disturbance_sensitivities(problem: JointProblem, x, p, reduced: Reduced, C_m
     rows = magnetometer_rows(problem, x, p)                                   # (n_int, 3s, n_theta)
     t_seg = session.t_mag_s[grid.mag_index]                                   # (n_int, s)
     A = np.swapaxes(so3.interpolate(grid.t_node_s, C_m_i_nodes, (t_seg - tau_s).ravel()), -1, -2)   # C_i^m per sample
-    w = grid.mag_weight.ravel() * float(p[weight_index("w_mag")])
+    w = grid.mag_weight.ravel() * global_number(p, "w_mag")
     L = -w[:, None, None] * (S @ A)                                           # d r_j / d delta_j
     B = problem.B
     phi = np.vstack([np.zeros(3), x[problem.n_theta :].reshape(-1, B)[:, :3]])
     start = C_m_i_nodes[:-1] @ so3.right_jacobian(phi[:-1])                   # C_n J_r(phi_n), node n of interval n
     J_node = L.reshape(problem.n_int, s, 3, 3) @ (so3.skew(m_i) @ start)[:, None]   # d r / d phi_n, (n_int, s, 3, 3)
     if problem.walk:   # d r / d eta_n = -w field_scale I
-        field_scale = float(p[weight_index("field_scale")])
+        field_scale = global_number(p, "field_scale")
         J_eta = -(w * field_scale).reshape(problem.n_int, s, 1, 1) * np.eye(3)
         J_node = np.concatenate([J_node, J_eta], axis=-1)                     # (n_int, s, 3, 6)
     W = np.concatenate([np.zeros((1, B, problem.n_theta)), reduced.Dinv_Hpt.reshape(problem.n_int, B, -1)[:-1]])
@@ -135,16 +134,6 @@ def disturbance_sensitivities(problem: JointProblem, x, p, reduced: Reduced, C_m
     U = np.einsum("nsra,nsrc->nsac", J_profiled, L.reshape(problem.n_int, s, 3, 3)).reshape(-1, problem.n_theta, 3)
     carries = grid.mag_weight.ravel() > 0
     return U[carries], t_seg.ravel()[carries]
-
-
-def weight_index(name: str) -> int:
-    """Index in the problem's parameter vector of the one-number global `name` (e.g. w_mag = 1 / sigma_mag)."""
-    offset = 0
-    for entry, n in GLOBAL_LAYOUT:
-        if entry == name:
-            return offset
-        offset += n
-    raise KeyError(name)
 
 
 def magnetometer_rows(problem: JointProblem, x, p) -> np.ndarray:

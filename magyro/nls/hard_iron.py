@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from magyro.nls.problem import JointProblem, global_part
+from magyro.nls.problem import JointProblem, global_number
 from magyro.session import Session
 
 
@@ -28,7 +28,7 @@ def hard_iron_at_samples(problem: JointProblem, x: np.ndarray, p: np.ndarray, se
     of the interval the sample starts a segment of (the last node's for the last sample)."""
     theta, g = x[: problem.n_theta], p[: problem.n_glob_p]
     h = np.array(problem.physical_function(theta, g)[1]).ravel()
-    field_scale = float(np.asarray(global_part(p, "field_scale")).item())
+    field_scale = global_number(p, "field_scale")
     eta = hard_iron_walk_states(problem, x)
     grid = problem.grid
     per_sample = np.zeros((len(session.t_mag_s), 3))

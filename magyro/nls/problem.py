@@ -117,6 +117,11 @@ def global_part(g, name: str):
     raise KeyError(name)
 
 
+def global_number(p: np.ndarray, name: str) -> float:
+    """The one-number global `name` (e.g. w_mag = 1 / sigma_mag, field_scale) of a numeric parameter vector."""
+    return float(np.asarray(global_part(p, name)).item())
+
+
 def huber_scaled(r, threshold: float):
     """r scaled so that |r|^2 / 2 becomes Huber's rho(|r|): quadratic inside `threshold`, linear outside."""
     n = ca.norm_2(r)
