@@ -58,11 +58,16 @@ def yaml_array(a) -> str:
     return "[" + ", ".join(yaml_array(row) for row in a) + "]"
 
 
-def yaml_text(cal: Calibration, source: str = "") -> str:
-    """A plain YAML file: the model in comments, then the parameters (flow-style lists, row-major matrices)."""
+def check_finite(cal: Calibration) -> None:
+    """InputError when any exported number of the calibration is not finite (every format checks this first)."""
     if not np.all(np.isfinite(np.concatenate([np.ravel(a) for a in (cal.K_g, cal.bias_rad_s, cal.C_b_m, cal.K,
                                                                        cal.eps_rad_s, cal.R, cal.h)]))):
         raise InputError("the calibration holds a number that is not finite; nothing to export")
+
+
+def yaml_text(cal: Calibration, source: str = "") -> str:
+    """A plain YAML file: the model in comments, then the parameters (flow-style lists, row-major matrices)."""
+    check_finite(cal)
     lines = ["# magyro calibration, exported for other programs (magyro export --format yaml)",
              *(f"# {line}" for line in MODEL_LINES),
              "# Every number reads back to the same double.",
@@ -110,7 +115,7 @@ def _c_array(a) -> str:
 
 def c_header(cal: Calibration, source: str = "") -> str:
     """A C99 header: `static const double` parameters and `static inline` apply functions, no allocation."""
-    yaml_text(cal, source)  # the same finiteness check
+    check_finite(cal)
     arrays = (("magyro_K_g", cal.K_g, "[3][3]", "gyro scale and non-orthogonality, upper triangular"),
               ("magyro_bias_rad_s", cal.bias_rad_s, "[3]", "eps_b, rad/s, ADDED: w_b = K_g y + eps_b"),
               ("magyro_K", cal.K, "[3][3]", "C_b_m K_g"),

@@ -26,7 +26,7 @@ import numpy as np
 
 from magyro.errors import InputError
 from magyro.result.calibration import Calibration
-from magyro.result.export import yaml_array, yaml_number
+from magyro.result.export import check_finite, yaml_array, yaml_number
 
 # the magnetometer unit labels magyro writes (magyro/io/csv_export.py MAG_UNITS), in gauss
 GAUSS_PER_UNIT = {"ut": 1e-2, "µt": 1e-2, "μt": 1e-2, "microtesla": 1e-2, "nt": 1e-5, "nanotesla": 1e-5,
@@ -39,9 +39,7 @@ def _one_line(text) -> str:
 
 
 def _check_gyro(cal: Calibration) -> None:
-    values = np.concatenate([np.ravel(a) for a in (cal.K_g, cal.bias_rad_s, cal.C_b_m, cal.R, cal.h)])
-    if not np.all(np.isfinite(values)):
-        raise InputError("the calibration holds a number that is not finite; nothing to export")
+    check_finite(cal)
     if not np.all(np.diag(cal.K_g) > 0):
         raise InputError("the gyro scale factors (diagonal of K_g) are not all positive; nothing to export")
 
