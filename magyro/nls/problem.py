@@ -219,15 +219,16 @@ def node_size(walk: bool) -> int:
 class JointProblem:
     """The least squares on one grid shape; data and linearisation enter as parameters.
 
-    With `walk` the hard iron moves: h(t) = h + field_scale * eta_n over the interval from node n, eta a random
-    walk from eta_0 = 0 whose steps are weighted by the parameters' `w_walk` (1 / sqrt(q dt)).
+    With a `walk_density` (magnetometer unit / sqrt(s)) the hard iron moves: h(t) = h + field_scale * eta_n over
+    the interval from node n, eta a random walk from eta_0 = 0 whose steps are weighted by the parameters'
+    `w_walk` (1 / (density sqrt(dt))). The kernels depend only on whether it walks, not on the density.
     """
 
     def __init__(self, grid: Grid, compiled: bool = True, estimate_time_offset: bool = True, huber: float | None = None,
-                 walk: bool = False):
+                 walk_density: float | None = None):
         self.grid = grid
-        self.walk = walk
-        self.walk_density: float | None = None   # set by the solve: the hard iron's random walk, unit / sqrt(s)
+        self.walk_density = walk_density
+        self.walk = walk = walk_density is not None
         self.B = node_size(walk)
         self.n_theta = N_GLOBAL + (1 if estimate_time_offset else 0)
         n, s, L = grid.nodes, grid.stride, grid.substeps
@@ -319,8 +320,7 @@ class JointProblem:
 
     # ---------------------------------------------------------------- numbers in
     def parameters(self, lin: Linearisation, y_mag, sigma_mag: float, sigma_gyro_density: float,
-                   t_gyro_s=None, gyro_rad_s=None, t_mag_s=None, tau0_s: float = 0.0,
-                   walk_density: float | None = None) -> np.ndarray:
+                   t_gyro_s=None, gyro_rad_s=None, t_mag_s=None, tau0_s: float = 0.0) -> np.ndarray:
         """Flat parameter vector: the linearisation, the weights and the data on the grid.
 
         With a time offset tau0 the raw gyro at each magnetometer stamp minus
@@ -350,8 +350,8 @@ class JointProblem:
             "ya": g_.gyro_a.reshape(n_int, 3 * s * L),
             "yb": g_.gyro_b.reshape(n_int, 3 * s * L),
         }
-        if self.walk:   # walk_density: the hard iron's random walk, magnetometer unit / sqrt(s); eta is in field_scale
-            cols["w_walk"] = (lin.field_scale / (walk_density * np.sqrt(g_.interval_s)))[:, None]
+        if self.walk:   # eta is in field_scale units
+            cols["w_walk"] = (lin.field_scale / (self.walk_density * np.sqrt(g_.interval_s)))[:, None]
         data = np.concatenate([cols[k] for k, _ in data_layout(s, L, self.walk)], axis=1)  # n_int x n_data
         return np.concatenate([gvec, data.reshape(-1)])
 

@@ -141,16 +141,14 @@ def build_problem(prep: Prepared, options: Options, method: NLS,
     grid = build_grid(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, method.stride or default_stride(s))
     lin = linearise(prep, grid, options, search_lag)
     problem = JointProblem(grid, compiled=method.compiled, estimate_time_offset=options.estimate_time_offset,
-                           huber=method.huber, walk=method.hard_iron_walk is not None)
-    problem.walk_density = method.hard_iron_walk
+                           huber=method.huber, walk_density=method.hard_iron_walk)
     return grid, lin, problem
 
 
 def problem_parameters(problem: JointProblem, prep: Prepared, lin: Linearisation, sigma_mag: float, tau0_s: float) -> np.ndarray:
     """The problem's parameter vector: linearisation point, noise weights and the session's data."""
     s = prep.session
-    return problem.parameters(lin, s.mag, sigma_mag, prep.gyro_density, s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, tau0_s,
-                              walk_density=problem.walk_density)
+    return problem.parameters(lin, s.mag, sigma_mag, prep.gyro_density, s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, tau0_s)
 
 
 def magnetometer_noise_factor(problem: JointProblem, x, p) -> float:
