@@ -16,13 +16,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from magyro.progress import step
 from magyro.errors import InputError, one_line
-from magyro.io.atomic import check_outputs
 from magyro.io.checks import session_from_table
 from magyro.io.columns import ACC_COLUMNS, GYRO_COLUMNS, MAG_COLUMNS, QUAT_COLUMNS, TIME_COLUMN
 from magyro.io.cutting import cut, decimate, trim
-from magyro.io.session_file import write_imported
+from magyro.io.session_file import import_to_file
 from magyro.session import Session
 
 BROAD_SUFFIXES_MAT = (".mat",)
@@ -102,12 +100,11 @@ def convert_broad(path, output, *, movement: bool = False, rest_s: float = 3.0,
     (data/PROVENANCE.md). Returns the written session. An `output` that is the trial
     file or cannot be written is refused before the trial is read.
     """
-    check_outputs([path], [output])
-    step(f"reading {Path(path).name}")
-    session = import_broad_movement(path, rest_s) if movement else import_broad(path)
-    session = decimate(cut(session, start_s, end_s), decimate_by)
-    write_imported(session, output, compression_level=compression_level)
-    return session
+    def read() -> Session:
+        session = import_broad_movement(path, rest_s) if movement else import_broad(path)
+        return decimate(cut(session, start_s, end_s), decimate_by)
+
+    return import_to_file([path], output, read, compression_level)
 
 
 # --------------------------------------------------------------------------- reading the file

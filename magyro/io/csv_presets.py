@@ -217,33 +217,30 @@ def convert_csv(sources, output, *, preset: str | None = None, column_map_items=
     [start_s, end_s] and written to `output` (`write_imported`). `column_map_items` are the CLI's
     --map items (NAME=COLUMN, or NAME=FILE:COLUMN with several files). An `output` that is a source or
     cannot be written is refused before anything is read. Returns the written session."""
-    from magyro.io.atomic import check_outputs
     from magyro.io.csv_export import import_csv, parse_column_map, parse_file_column_map
     from magyro.io.cutting import cut
-    from magyro.io.session_file import write_imported
-
-    from magyro.progress import step
+    from magyro.io.session_file import import_to_file
 
     sources = [Path(s) for s in sources]
-    check_outputs(sources, [output])
-    step("reading " + ", ".join(s.name for s in sources))
-    if preset is not None:
-        given = [name for name, value in (("--gyro-unit", gyro_unit), ("--mag-unit", mag_unit),
-                                          ("--map", column_map_items)) if value]
-        if given:
-            raise InputError(f"--preset {preset} knows the units and columns; leave out {', '.join(given)}")
-        session = import_preset(sources, preset, skip_rows=skip_rows, header_line=header_line, delimiter=delimiter)
-    else:
-        missing = [name for name, value in (("--gyro-unit", gyro_unit), ("--mag-unit", mag_unit)) if value is None]
-        if missing:
-            raise InputError(f"give {' and '.join(missing)} (the units of the CSV columns), or --preset "
-                             f"sensor-logger|phyphox for those apps' exports")
-        units = dict(gyro_unit=gyro_unit, mag_unit=mag_unit, time_unit=time_unit, acc_unit=acc_unit,
-                     delimiter=delimiter, skip_rows=skip_rows, header_line=header_line)
-        if len(sources) == 1:
-            session = import_csv(sources[0], parse_column_map(column_map_items), **units)
+
+    def read() -> Session:
+        if preset is not None:
+            given = [name for name, value in (("--gyro-unit", gyro_unit), ("--mag-unit", mag_unit),
+                                              ("--map", column_map_items)) if value]
+            if given:
+                raise InputError(f"--preset {preset} knows the units and columns; leave out {', '.join(given)}")
+            session = import_preset(sources, preset, skip_rows=skip_rows, header_line=header_line, delimiter=delimiter)
         else:
-            session = import_csv_files(sources, parse_file_column_map(column_map_items, sources), **units)
-    session = cut(session, start_s, end_s)
-    write_imported(session, output)
-    return session
+            missing = [name for name, value in (("--gyro-unit", gyro_unit), ("--mag-unit", mag_unit)) if value is None]
+            if missing:
+                raise InputError(f"give {' and '.join(missing)} (the units of the CSV columns), or --preset "
+                                 f"sensor-logger|phyphox for those apps' exports")
+            units = dict(gyro_unit=gyro_unit, mag_unit=mag_unit, time_unit=time_unit, acc_unit=acc_unit,
+                         delimiter=delimiter, skip_rows=skip_rows, header_line=header_line)
+            if len(sources) == 1:
+                session = import_csv(sources[0], parse_column_map(column_map_items), **units)
+            else:
+                session = import_csv_files(sources, parse_file_column_map(column_map_items, sources), **units)
+        return cut(session, start_s, end_s)
+
+    return import_to_file(sources, output, read)

@@ -22,12 +22,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from magyro.progress import step
 from magyro.errors import InputError, one_line
-from magyro.io.atomic import check_outputs
 from magyro.io.checks import MIN_SAMPLES, session_from_table
 from magyro.io.columns import ACC_COLUMNS, GYRO_COLUMNS, MAG_COLUMNS, TIME_COLUMN
-from magyro.io.session_file import write_imported
+from magyro.io.session_file import import_to_file
 from magyro.session import Session
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
@@ -105,11 +103,8 @@ def convert_rosbag(path, output, imu_topic: str | None = None, mag_topic: str | 
     An `output` that is the bag or cannot be written is refused before the bag is read.
     Returns the written session.
     """
-    check_outputs([path], [output])
-    step(f"reading {Path(path).name}")
-    session = import_rosbag(path, imu_topic=imu_topic, mag_topic=mag_topic)
-    write_imported(session, output, compression_level=compression_level)
-    return session
+    return import_to_file([path], output, lambda: import_rosbag(path, imu_topic=imu_topic, mag_topic=mag_topic),
+                          compression_level)
 
 
 # --------------------------------------------------------------------------- reading the bag

@@ -13,6 +13,7 @@ without pandas (0.35 s saved on every solve).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pyarrow as pa
@@ -159,6 +160,20 @@ def write_imported(session: Session, path, compression_level: int | None = None)
 
     step(f"writing {Path(path).name}")
     write_session(session, path, compression="zstd", compression_level=compression_level)
+
+
+def import_to_file(sources, output, read: Callable[[], Session], compression_level: int | None = None) -> Session:
+    """What every `magyro import` does: an `output` that is a source or cannot be written refused before anything
+    is read, the recording read by `read()`, the session written whole (`write_imported`). Returns it."""
+    from magyro.io.atomic import check_outputs
+    from magyro.progress import step
+
+    sources = [Path(s) for s in sources]
+    check_outputs(sources, [output])
+    step("reading " + ", ".join(s.name for s in sources))
+    session = read()
+    write_imported(session, output, compression_level=compression_level)
+    return session
 
 
 def session_table(session: Session, truth_quat: bool = True):

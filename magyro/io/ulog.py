@@ -30,12 +30,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from magyro.progress import step
 from magyro.errors import InputError, one_line
-from magyro.io.atomic import check_outputs
 from magyro.io.checks import MIN_SAMPLES, session_from_table
 from magyro.io.columns import GYRO_COLUMNS, MAG_COLUMNS, TIME_COLUMN
-from magyro.io.session_file import write_imported
+from magyro.io.session_file import import_to_file
 from magyro.session import Session
 
 ULOG_MAGIC = b"ULog\x01\x12\x35"
@@ -135,11 +133,7 @@ def convert_ulog(path, output, instance: int = 0, topics=None,
     An `output` that is the log or cannot be written is refused before the log is read.
     Returns the written session.
     """
-    check_outputs([path], [output])
-    step(f"reading {Path(path).name}")
-    session = import_ulog(path, instance=instance, topics=topics)
-    write_imported(session, output, compression_level=compression_level)
-    return session
+    return import_to_file([path], output, lambda: import_ulog(path, instance=instance, topics=topics), compression_level)
 
 
 def parse_topics(text: str | None):
