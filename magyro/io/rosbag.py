@@ -20,12 +20,11 @@ import importlib.metadata
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from magyro.errors import InputError, one_line
 from magyro.io.checks import MIN_SAMPLES, session_from_table
-from magyro.io.columns import ACC_COLUMNS, GYRO_COLUMNS, MAG_COLUMNS, TIME_COLUMN
-from magyro.io.session_file import import_to_file
+from magyro.io.columns import ACC_COLUMNS, GYRO_COLUMNS, MAG_COLUMNS
+from magyro.io.session_file import import_to_file, table_of_groups
 from magyro.session import Session
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
@@ -68,7 +67,8 @@ def import_rosbag(path, imu_topic: str | None = None, mag_topic: str | None = No
     t_imu_s = (imu["stamps_ns"] - origin_ns) / 1e9
     t_mag_s = (mag["stamps_ns"] - origin_ns) / 1e9
     with_acc = bool(imu["acc_present"].any())
-    table = _table(t_imu_s, imu["gyro"], imu["acc"] if with_acc else None, t_mag_s, mag["mag"])
+    groups = [(t_imu_s, imu["gyro"], GYRO_COLUMNS), (t_mag_s, mag["mag"], MAG_COLUMNS)]
+    table = table_of_groups(groups + ([(t_imu_s, imu["acc"], ACC_COLUMNS)] if with_acc else []))
 
     metadata = {
         "source": str(path),
@@ -177,21 +177,6 @@ def _read(path: Path, reader, topic: str, msgtype: str) -> dict:
     else:
         stream["mag"] = np.asarray(mag, dtype=np.float64).reshape(-1, 3)[keep] * TESLA_TO_UT
     return stream
-
-
-def _table(t_imu_s: np.ndarray, gyro: np.ndarray, acc: np.ndarray | None,
-           t_mag_s: np.ndarray, mag: np.ndarray) -> pd.DataFrame:
-    """The session table: one row per distinct time, NaN where a sensor has no sample."""
-    t_s = np.union1d(t_imu_s, t_mag_s)
-    columns = {TIME_COLUMN: t_s}
-    groups = [(t_imu_s, gyro, GYRO_COLUMNS), (t_mag_s, mag, MAG_COLUMNS)]
-    if acc is not None:
-        groups.append((t_imu_s, acc, ACC_COLUMNS))
-    for t_group, samples, names in groups:
-        out = np.full((len(t_s), 3), np.nan)
-        out[np.searchsorted(t_s, t_group)] = samples
-        columns.update({n: out[:, k] for k, n in enumerate(names)})
-    return pd.DataFrame(columns)
 
 
 def _describe(stream: dict) -> str:

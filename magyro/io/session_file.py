@@ -178,14 +178,20 @@ def import_to_file(sources, output, read: Callable[[], Session], compression_lev
 
 def session_table(session: Session, truth_quat: bool = True):
     """The session table (docs/spec.md section 2) (a DataFrame): one row per distinct time over all sensors, NaN where not sampled."""
-    import pandas as pd
-
     groups = [(session.t_gyro_s, session.gyro_rad_s, GYRO_COLUMNS),
               (session.t_mag_s, session.mag, MAG_COLUMNS)]
     if session.t_acc_s is not None and session.acc_m_s2 is not None:
         groups.append((session.t_acc_s, session.acc_m_s2, ACC_COLUMNS))
     if truth_quat and session.t_quat_s is not None and session.quat_wxyz is not None:
         groups.append((session.t_quat_s, session.quat_wxyz, QUAT_COLUMNS))
+    return table_of_groups(groups)
+
+
+def table_of_groups(groups):
+    """A session table (DataFrame) from (times, samples, column names) per sensor: one row per distinct time over
+    all of them, NaN where a sensor has no sample (the writer's and the importers' one layout)."""
+    import pandas as pd
+
     t_s = np.unique(np.concatenate([np.asarray(t, dtype=float) for t, _, _ in groups]))
     columns = {TIME_COLUMN: t_s}
     for t_group_s, samples, names in groups:

@@ -28,12 +28,11 @@ import json
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from magyro.errors import InputError, one_line
 from magyro.io.checks import MIN_SAMPLES, session_from_table
-from magyro.io.columns import GYRO_COLUMNS, MAG_COLUMNS, TIME_COLUMN
-from magyro.io.session_file import import_to_file
+from magyro.io.columns import GYRO_COLUMNS, MAG_COLUMNS
+from magyro.io.session_file import import_to_file, table_of_groups
 from magyro.session import Session
 
 ULOG_MAGIC = b"ULog\x01\x12\x35"
@@ -91,7 +90,7 @@ def import_ulog(path, instance: int = 0, topics=None) -> Session:
     origin_us = int(min(gyro["stamps_us"][0], mag["stamps_us"][0]))
     t_gyro_s = (gyro["stamps_us"] - origin_us) / 1e6
     t_mag_s = (mag["stamps_us"] - origin_us) / 1e6
-    table = _table(t_gyro_s, gyro["values"], t_mag_s, mag["values"])
+    table = table_of_groups([(t_gyro_s, gyro["values"], GYRO_COLUMNS), (t_mag_s, mag["values"], MAG_COLUMNS)])
 
     info = ulog.msg_info_dict
     cal_params = {k: v for k, v in sorted(ulog.initial_parameters.items())
@@ -236,17 +235,6 @@ def _stream(data: dict, topic: str, sensor: str) -> dict:
         keep[1:] = stamps[1:] > np.maximum.accumulate(stamps)[:-1]
     return {"topic": topic, "fields": fields, "time_field": time_field, "stamps_us": stamps[keep],
             "values": values[keep], "rows": rows, "dropped": rows - int(keep.sum())}
-
-
-def _table(t_gyro_s: np.ndarray, gyro: np.ndarray, t_mag_s: np.ndarray, mag: np.ndarray) -> pd.DataFrame:
-    """The session table: one row per distinct time, NaN where a sensor has no sample."""
-    t_s = np.union1d(t_gyro_s, t_mag_s)
-    columns = {TIME_COLUMN: t_s}
-    for t_group, samples, names in ((t_gyro_s, gyro, GYRO_COLUMNS), (t_mag_s, mag, MAG_COLUMNS)):
-        out = np.full((len(t_s), 3), np.nan)
-        out[np.searchsorted(t_s, t_group)] = samples
-        columns.update({n: out[:, k] for k, n in enumerate(names)})
-    return pd.DataFrame(columns)
 
 
 def _describe(stream: dict) -> str:
