@@ -69,3 +69,43 @@ def _plain_line(stream) -> Callable[[str], None]:
         stream.flush()
 
     return show
+
+
+@contextlib.contextmanager
+def counting(total: int, label: str = "runs", enabled: bool = True, stream=None):
+    """Progress through `total` items (Monte Carlo runs, a batch's devices): yields `tick(done, text, alarm=False,
+    total=None)` (`total` when it becomes known only later).
+
+    On a terminal a rich bar on stderr with the last item's text (an `alarm` item, a failure, is also printed
+    as its own line); otherwise one line per item, "LABEL k/N text", so a log keeps them. Disabled: yields None.
+    """
+    stream = stream or sys.stderr
+    if not enabled:
+        yield None
+        return
+    state = {"total": total}
+    try:
+        if not stream.isatty():
+            raise ImportError
+        from rich.console import Console
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+    except (ImportError, AttributeError, ValueError):
+        def plain(done: int, text: str, alarm: bool = False, total: int | None = None) -> None:
+            state["total"] = total or state["total"]
+            print(f"{label[:-1] if label.endswith('s') else label} {done}/{state['total']} {text}", file=stream,
+                  flush=True)
+
+        yield plain
+        return
+    console = Console(file=stream)
+    with Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  TextColumn("{task.fields[last]}"), console=console) as bar:
+        task = bar.add_task(label, total=total or None, last="")
+
+        def rich_tick(done: int, text: str, alarm: bool = False, total: int | None = None) -> None:
+            state["total"] = total or state["total"]
+            if alarm:
+                console.print(f"{done}/{state['total']} {text}")
+            bar.update(task, completed=done, total=state["total"] or None, last=text[:60])
+
+        yield rich_tick

@@ -22,10 +22,8 @@ the table is built from the successful runs.
 """
 from __future__ import annotations
 
-import concurrent.futures as cf
 import contextlib
 import datetime as _dt
-import multiprocessing
 import os
 import time
 import traceback
@@ -35,6 +33,8 @@ import numpy as np
 
 from magyro.ekf.method import EKF
 from magyro.errors import InputError, one_line
+from magyro.executor import executor_for, run_unordered
+from magyro.progress import counting
 from magyro.nls.method import NLS
 from magyro.options import Options
 from magyro.result.reported import std_from_covariance
@@ -48,9 +48,6 @@ from magyro.studies.simulate import simulate
 # method name -> method object (`.calibrate(session, options) -> Calibration`), looked up when a
 # study starts (tests patch it). The CRLB is the bound of METHODS["nls"]'s discretisation.
 METHODS: dict = {"nls": NLS(), "ekf": EKF()}
-WORKER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-                           "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
-DEFAULT_START_METHOD = "spawn"
 
 ProgressCallback = Callable[[int, int, list], None]
 
@@ -112,55 +109,29 @@ def run_seed(problem: Scenario, seed: int, methods: dict, options: Options) -> l
     return out
 
 
-# --------------------------------------------------------------------------- worker processes
+# --------------------------------------------------------------------------- on an executor
 
 
-def _worker_init() -> None:
-    """Pool initializer: one BLAS/OpenMP thread per worker (the env is also set before spawning)."""
-    for name in WORKER_THREAD_VARIABLES:
-        os.environ[name] = "1"
+def study_task(kind: str, problem: Scenario, seed: int, methods: dict, options: Options, nls: NLS):
+    """One task of a study on an executor: the CRLB at `seed` ("crlb") or `seed`'s run with every method ("run")."""
+    return crlb_task(problem, seed, options, nls) if kind == "crlb" else run_seed(problem, seed, methods, options)
 
 
-@contextlib.contextmanager
-def _single_threaded_children():
-    """Set the thread-count variables while the pool's workers start (spawned children read them at import)."""
-    saved = {name: os.environ.get(name) for name in WORKER_THREAD_VARIABLES}
-    try:
-        for name in WORKER_THREAD_VARIABLES:
-            os.environ[name] = "1"
-        yield
-    finally:
-        for name, value in saved.items():
-            if value is None:
-                os.environ.pop(name, None)
-            else:
-                os.environ[name] = value
+def _run_on(executor, problem: Scenario, seeds: list[int], methods: dict, options: Options, nls: NLS,
+            finished: Callable[[int, list[Outcome]], None]) -> dict:
+    """The CRLB task and every seed on `executor` (`finished` called as each seed completes); the CRLB's result."""
+    crlb = {"values": {}, "error": None}
 
+    def done(item: tuple, result, error) -> None:
+        kind, seed = item
+        if kind == "crlb":
+            crlb.update(result if error is None else {"values": {}, "error": one_line(error, limit=None)})
+        else:   # a worker that died (BrokenProcessPool, KilledWorker) or could not unpickle fails its seed only
+            finished(seed, result if error is None else [Outcome.failure(seed, m, error, 0.0) for m in methods])
 
-def _run_in_pool(problem: Scenario, seeds: list[int], methods: dict, options: Options, nls: NLS, workers: int,
-                 start_method: str, finished: Callable[[int, list[Outcome]], None]) -> dict:
-    """Every seed in `workers` processes (`finished` called as each completes); returns the CRLB task's result."""
-    context = multiprocessing.get_context(start_method)
-    with _single_threaded_children():
-        pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init)
-        try:
-            crlb_future = pool.submit(crlb_task, problem, seeds[0], options, nls)
-            futures = {pool.submit(run_seed, problem, seed, methods, options): seed for seed in seeds}
-            for fut in cf.as_completed(futures):
-                seed = futures[fut]
-                try:
-                    outcomes = fut.result()
-                except Exception as exc:  # a worker died (BrokenProcessPool) or could not unpickle
-                    outcomes = [Outcome.failure(seed, m, exc, 0.0) for m in methods]
-                finished(seed, outcomes)
-            try:
-                crlb = crlb_future.result()
-            except Exception as exc:
-                crlb = {"values": {}, "error": one_line(exc, limit=None)}
-        except BaseException:
-            pool.shutdown(wait=False, cancel_futures=True)
-            raise
-        pool.shutdown(wait=True)
+    items = [("crlb", seeds[0])] + [("run", seed) for seed in seeds]
+    run_unordered(executor, study_task, items, done,
+                  arguments=lambda item: (item[0], problem, item[1], methods, options, nls), warm_first=True)
     return crlb
 
 
@@ -169,13 +140,15 @@ def _run_in_pool(problem: Scenario, seeds: list[int], methods: dict, options: Op
 
 def run_montecarlo(problem: Scenario, runs: int, jobs: int = 1, method: str | Sequence[str] = "nls", seed0: int = 0,
                    options: Options | None = None, progress: ProgressCallback | None = None,
-                   start_method: str | None = None) -> MonteCarloResult:
+                   start_method: str | None = None, scheduler: str | None = None) -> MonteCarloResult:
     """`runs` sessions (seeds seed0 ..), each solved by every method; the table of the successes.
 
     jobs > 1 solves in that many processes (`start_method` "spawn", the
     default, or "fork"/"forkserver"), each with one BLAS/OpenMP thread (a
     forked worker keeps the BLAS threads its parent already started).
-    jobs == 1 solves in this process. `progress(done, runs, outcomes)` is
+    jobs == 1 solves in this process; `scheduler` (a Dask scheduler's address)
+    solves on that cluster instead (`magyro.executor`), with the same numbers.
+    `progress(done, runs, outcomes)` is
     called as each seed finishes, with that seed's list of Outcome (one per
     method).
     """
@@ -197,15 +170,10 @@ def run_montecarlo(problem: Scenario, runs: int, jobs: int = 1, method: str | Se
         if progress is not None:
             progress(len(by_seed), runs, outcomes)
 
-    workers = min(jobs, runs)
-    used_start_method = None
-    if workers == 1:
-        crlb = crlb_task(problem, seed0, options, nls)
-        for seed in seeds:
-            finished(seed, run_seed(problem, seed, methods, options))
-    else:
-        used_start_method = start_method or DEFAULT_START_METHOD
-        crlb = _run_in_pool(problem, seeds, methods, options, nls, workers, used_start_method, finished)
+    executor = executor_for(min(jobs, runs), scheduler, start_method)
+    used_start_method = getattr(executor, "start_method", None)
+    with executor:
+        crlb = _run_on(executor, problem, seeds, methods, options, nls, finished)
 
     truth = truth_values(problem)
     paper = matches_paper(problem)
@@ -226,44 +194,20 @@ def run_montecarlo(problem: Scenario, runs: int, jobs: int = 1, method: str | Se
 
 @contextlib.contextmanager
 def progress_display(total: int, enabled: bool = True, stream=None):
-    """A progress callback for run_montecarlo: a rich bar on a terminal, else one "run k/N" line per run.
+    """A progress callback for run_montecarlo (`magyro.progress.counting`): a bar on a terminal, else one
+    "run k/N" line per run, on stderr, so stdout holds only the table."""
+    with counting(total, "runs", enabled, stream) as tick:
+        if tick is None:
+            yield None
+            return
 
-    Everything goes to stderr, so stdout holds only the table.
-    """
-    import sys
+        def show(done: int, n: int, outcomes: list[Outcome]) -> None:
+            tick(done, describe_outcomes(outcomes), alarm=any(not o.ok for o in outcomes))
 
-    stream = stream or sys.stderr
-    if not enabled:
-        yield None
-        return
+        yield show
 
-    def describe(outcomes: list[Outcome]) -> str:
-        parts = []
-        for o in outcomes:
-            parts.append(f"{o.method} ok {o.seconds:.1f} s" if o.ok else f"{o.method} FAILED ({o.error_type}: {o.error})")
-        return f"seed {outcomes[0].seed}: " + ", ".join(parts)
 
-    try:
-        if not stream.isatty():
-            raise ImportError
-        from rich.console import Console
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-    except (ImportError, AttributeError, ValueError):
-        def plain(done: int, n: int, outcomes: list[Outcome]) -> None:
-            print(f"run {done}/{n} {describe(outcomes)}", file=stream, flush=True)
-
-        yield plain
-        return
-
-    console = Console(file=stream)
-    with Progress(TextColumn("runs"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  TextColumn("{task.fields[last]}"), console=console) as bar:
-        task = bar.add_task("runs", total=total, last="")
-
-        def rich_progress(done: int, n: int, outcomes: list[Outcome]) -> None:
-            failed = [o for o in outcomes if not o.ok]
-            if failed:
-                console.print(f"run {done}/{n} {describe(outcomes)}")
-            bar.update(task, completed=done, last=describe(outcomes)[:60])
-
-        yield rich_progress
+def describe_outcomes(outcomes: list[Outcome]) -> str:
+    parts = [f"{o.method} ok {o.seconds:.1f} s" if o.ok else f"{o.method} FAILED ({o.error_type}: {o.error})"
+             for o in outcomes]
+    return f"seed {outcomes[0].seed}: " + ", ".join(parts)
