@@ -10,6 +10,10 @@ is unusable. Turning a problem into samples is `magyro.studies.simulate`.
 The motion (`Motion`) is drawn from its own ``motion.seed``, so every noise
 seed of a problem sees the same motion; `Scenario` also derives what the sensor
 model needs from the file's numbers (C_b^m, K = C_b^m K_g, R, the field m^w).
+
+The optional ``[spread]`` section (`Spread`) is the one-sigma spread of the sensor
+errors from device to device around the file's values; it changes nothing in
+`simulate`, and `magyro.studies.fleet.device_scenario` draws one device from it.
 """
 from __future__ import annotations
 
@@ -58,6 +62,42 @@ class Motion:
     initial_euler_deg: np.ndarray      # C0 = C_b^w at rest, [roll, pitch, yaw]
 
 
+@dataclass(frozen=True)
+class Spread:
+    """One-sigma spread of the sensor errors from device to device (the ``[spread]`` section); 0 = none.
+
+    scale_ppm             K_g diagonal, relative: K_g[i,i] (1 + 1e-6 scale_ppm z)
+    nonorthogonality_deg  K_g above the diagonal, as angles: K_g[i,j] + radians(nonorthogonality_deg) z
+    bias_deg_s            eps_b, each axis
+    misalignment_deg      each Euler angle of C_b^m
+    soft_iron             T: diagonal relative, T[i,i] (1 + soft_iron z); above it absolute, T[i,j] + soft_iron z
+    hard_iron             h, each axis, in the magnetometer unit
+    time_offset_s         the magnetometer's lag
+    """
+
+    scale_ppm: float = 0.0
+    nonorthogonality_deg: float = 0.0
+    bias_deg_s: float = 0.0
+    misalignment_deg: float = 0.0
+    soft_iron: float = 0.0
+    hard_iron: float = 0.0
+    time_offset_s: float = 0.0
+
+    @property
+    def is_zero(self) -> bool:
+        return all(getattr(self, k) == 0.0 for k in SPREAD_KEYS)
+
+    def to_dict(self) -> dict[str, float]:
+        return {k: getattr(self, k) for k in SPREAD_KEYS}
+
+
+SPREAD_KEYS = ("scale_ppm", "nonorthogonality_deg", "bias_deg_s", "misalignment_deg", "soft_iron", "hard_iron",
+               "time_offset_s")
+# the relative spreads must leave the diagonals of K_g and T positive: at most 10 % (a draw below -10 sigma
+# would be needed to reach zero)
+SPREAD_MAX_RELATIVE = {"scale_ppm": 1e5, "soft_iron": 0.1}
+
+
 @dataclass(frozen=True, eq=False)
 class Scenario:
     """A complete simulated scenario; see problems/paper-table1.toml for the keys."""
@@ -80,6 +120,7 @@ class Scenario:
     hard_iron: np.ndarray              # (3,) h, in mag_unit
     motion: Motion
     source_path: str = ""
+    spread: Spread = Spread()           # device-to-device spread of the errors ([spread]); none by default
 
     @property
     def gyro_bias_rad_s(self) -> np.ndarray:
@@ -133,6 +174,7 @@ _SCHEMA: dict[str, dict[str, bool]] = {  # section -> key -> required
         "components": False, "rest_start_s": False, "rest_end_s": False, "ramp_s": False,
         "initial_euler_deg": False,
     },
+    "spread": {k: False for k in SPREAD_KEYS},
 }
 
 
@@ -166,7 +208,8 @@ def load_problem(path_or_name: str | os.PathLike) -> Scenario:
 def parse_problem(raw: dict, source: str = "<dict>", default_name: str = "problem") -> Scenario:
     """Build a Scenario from the parsed TOML tables, checking keys, shapes and ranges."""
     _check_keys(raw, source)
-    p, g, mis, mag, mo = (raw.get(s, {}) for s in ("problem", "gyro", "misalignment", "magnetometer", "motion"))
+    p, g, mis, mag, mo, sp = (raw.get(s, {}) for s in ("problem", "gyro", "misalignment", "magnetometer", "motion",
+                                                        "spread"))
     where = lambda sec: f"{source} [{sec}]"  # noqa: E731
     problem = Scenario(
         name=_string(p.get("name", default_name), where("problem"), "name"),
@@ -188,6 +231,7 @@ def parse_problem(raw: dict, source: str = "<dict>", default_name: str = "proble
         hard_iron=_vector3(mag.get("hard_iron", [0.0, 0.0, 0.0]), where("magnetometer"), "hard_iron"),
         motion=_parse_motion(mo, where("motion")),
         source_path=source,
+        spread=_parse_spread(sp, where("spread")),
     )
     _check_consistency(problem, source)
     return problem
@@ -243,6 +287,15 @@ def _parse_motion(mo: dict, where: str) -> Motion:
         ramp_s=_positive(mo.get("ramp_s", 2.0), where, "ramp_s"),
         initial_euler_deg=_vector3(mo.get("initial_euler_deg", [0.0, 0.0, 0.0]), where, "initial_euler_deg"),
     )
+
+
+def _parse_spread(sp: dict, where: str) -> Spread:
+    values = {k: _non_negative(sp.get(k, 0.0), where, k) for k in SPREAD_KEYS}
+    for key, limit in SPREAD_MAX_RELATIVE.items():
+        if values[key] > limit:
+            raise InputError(f"{where}: {key} must be at most {limit:g} (a relative spread of 10 %, which keeps the "
+                             f"diagonal positive), got {sp[key]!r}")
+    return Spread(**values)
 
 
 def _check_consistency(problem: Scenario, source: str) -> None:
