@@ -1,0 +1,242 @@
+"""Acceptance limits of a production line, and each device's verdict against them.
+
+`load_limits(path)` reads a TOML file with one ``[limits]`` table (an example with every key
+explained: docs/limits-example.toml); `verdict(row, limits)` judges one row of the fleet
+summary (`magyro.batch.row`) and `with_verdicts(rows, limits)` adds the columns ``verdict``
+("accepted" | "rejected" | "failed") and ``verdict_reason`` to copies of the rows. The limits
+only read the rows, so changing them never re-solves a session.
+
+A limit left out (None) is no limit. A quantity that a limit needs but the row does not
+hold (NaN) rejects the device: an acceptance never passes what it did not measure.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+from magyro.batch.row import AXES, EULER, PAIRS
+from magyro.errors import InputError
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
+
+# the recording check's finding kinds (magyro.front: recording, signals, repairs) and the calibration's
+# other warning kinds (magyro.batch.row.warning_kind); "any" in reject_warnings rejects every warning
+FINDING_KINDS = ("bursts", "clock_drift", "gaps", "gyro_holes", "gyro_unit", "held", "jitter", "overlap", "samples",
+                 "saturation", "spikes", "time_offset", "time_unit")
+WARNING_KINDS = FINDING_KINDS + ("split_check", "forced", "rests", "other")
+ANY = "any"
+SPLIT_HINT = "run the batch with --split-check"
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Acceptance limits; None = no limit. Absolute limits bound |value| of each axis, std limits each one-sigma."""
+
+    max_abs_scale_ppm: float | None = None         # |K_g[i,i] - 1|, ppm
+    max_abs_nonorth_deg: float | None = None       # |K_g above the diagonal| as angles, deg
+    max_abs_bias_deg_s: float | None = None        # |eps_b|, deg/s
+    max_abs_misalignment_deg: float | None = None  # |each Euler angle of C_b_m|, deg
+    max_std_scale_ppm: float | None = None
+    max_std_nonorth_deg: float | None = None
+    max_std_bias_deg_s: float | None = None
+    max_std_misalignment_deg: float | None = None
+    max_split_rms_z: float | None = None           # the split-half check's RMS z (needs --split-check)
+    reject_warnings: tuple[str, ...] = ()          # warning kinds (row's warning_kinds) that reject; "any": all
+    reject_findings: tuple[str, ...] = ()          # recording-check kinds (row's findings), repaired or not
+
+    def is_empty(self) -> bool:
+        return all(getattr(self, f.name) in (None, ()) for f in fields(self))
+
+
+# limit -> (the row's columns it bounds, unit, absolute value?)
+CHECKS = {
+    "max_abs_scale_ppm": ([f"scale_ppm_{a}" for a in AXES], "ppm", True),
+    "max_abs_nonorth_deg": ([f"nonorth_deg_{p}" for *_, p in PAIRS], "deg", True),
+    "max_abs_bias_deg_s": ([f"bias_deg_s_{a}" for a in AXES], "deg/s", True),
+    "max_abs_misalignment_deg": ([f"misalignment_deg_{e}" for e in EULER], "deg", True),
+    "max_std_scale_ppm": ([f"std_scale_ppm_{a}" for a in AXES], "ppm", False),
+    "max_std_nonorth_deg": ([f"std_nonorth_deg_{p}" for *_, p in PAIRS], "deg", False),
+    "max_std_bias_deg_s": ([f"std_bias_deg_s_{a}" for a in AXES], "deg/s", False),
+    "max_std_misalignment_deg": ([f"std_misalignment_deg_{a}" for a in AXES], "deg", False),
+    "max_split_rms_z": (["split_rms_z"], "", False),
+}
+NUMBER_KEYS = tuple(CHECKS)
+LIST_KEYS = ("reject_warnings", "reject_findings")
+KEYS = NUMBER_KEYS + LIST_KEYS
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def load_limits(path) -> Limits:
+    """Read and check a limits TOML (one ``[limits]`` table); InputError with one plain message if unusable."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"limits file {path} not found (no such file)")
+    if path.is_dir():
+        raise InputError(f"limits file {path} is a folder; give the path of a TOML file")
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"limits file {path}: not valid TOML ({' '.join(str(exc).split())})") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"limits file {path}: cannot read ({' '.join(str(exc).split())})") from None
+    return parse_limits(raw, source=f"limits file {path}")
+
+
+def parse_limits(raw: dict, source: str = "limits") -> Limits:
+    """The `Limits` of a parsed TOML document ``{"limits": {...}}``; InputError naming `source` and the key."""
+    extra = sorted(k for k in raw if k != "limits")
+    if extra:
+        raise InputError(f"{source}: unknown top-level key(s) {', '.join(extra)}; the only one allowed is the "
+                         f"[limits] table")
+    if "limits" not in raw:
+        raise InputError(f"{source}: no [limits] table; write the limits under a [limits] line "
+                         f"(see docs/limits-example.toml)")
+    table = raw["limits"]
+    if not isinstance(table, dict):
+        raise InputError(f"{source}: limits must be a [limits] table, got {type(table).__name__}")
+    unknown = sorted(k for k in table if k not in KEYS)
+    if unknown:
+        raise InputError(f"{source} [limits]: unknown key(s) {', '.join(unknown)}; the keys are "
+                         f"{', '.join(KEYS)}")
+    values: dict = {}
+    for key in NUMBER_KEYS:
+        if key in table:
+            values[key] = _number(table[key], f"{source} [limits] {key}")
+    for key in LIST_KEYS:
+        if key in table:
+            known = WARNING_KINDS + (ANY,) if key == "reject_warnings" else FINDING_KINDS
+            values[key] = _kinds(table[key], f"{source} [limits] {key}", known)
+    return Limits(**values)
+
+
+def _number(value, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"{where} must be a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise InputError(f"{where} must be a finite number, got {value!r}")
+    if value < 0:
+        raise InputError(f"{where} must not be negative (it bounds an absolute value or a std), got {value:g}")
+    return value
+
+
+def _kinds(value, where: str, known: tuple) -> tuple[str, ...]:
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise InputError(f"{where} must be a list of kinds (strings), e.g. [\"saturation\"], got {value!r}")
+    kinds = tuple(dict.fromkeys(v.strip() for v in value))
+    unknown = [k for k in kinds if k not in known]
+    if unknown:
+        raise InputError(f"{where}: unknown kind(s) {', '.join(repr(k) for k in unknown)}; the kinds are "
+                         f"{', '.join(known)}")
+    return kinds
+
+
+# --------------------------------------------------------------------------- judging
+
+
+def verdict(row: dict, limits: Limits | None) -> tuple[str, str]:
+    """("accepted", ""), ("rejected", every broken limit with its numbers and units, "; "-joined), or, for a row
+    whose status is not "calibrated", ("failed", "exit N, class: message")."""
+    if row.get("status") != "calibrated":
+        return "failed", failure_reason(row)
+    limits = limits if limits is not None else Limits()
+    reasons: list[str] = []
+    for key, (columns, unit, absolute) in CHECKS.items():
+        limit = getattr(limits, key)
+        if limit is None:
+            continue
+        for column in columns:
+            value = _float(row.get(column))
+            if not math.isfinite(value):
+                hint = SPLIT_HINT if column == "split_rms_z" else "the calibration did not give it"
+                reasons.append(f"{column} not measured ({hint})")
+            elif (abs(value) if absolute else value) > limit:
+                reasons.append(_broken(column, value, limit, unit))
+    warnings = kinds_of(row.get("warning_kinds"))
+    rejected = warnings if ANY in limits.reject_warnings else [k for k in warnings if k in limits.reject_warnings]
+    reasons += [f"warning {k}" for k in rejected]
+    repaired = set(kinds_of(row.get("repaired")))
+    reasons += [f"finding {k}{' (repaired)' if k in repaired else ''}" for k in kinds_of(row.get("findings"))
+                if k in limits.reject_findings]
+    return ("rejected", "; ".join(reasons)) if reasons else ("accepted", "")
+
+
+def with_verdicts(rows, limits: Limits | None) -> list[dict]:
+    """Copies of `rows`, each with the columns ``verdict`` and ``verdict_reason``."""
+    out = []
+    for row in rows:
+        decided, reason = verdict(row, limits)
+        out.append({**row, "verdict": decided, "verdict_reason": reason})
+    return out
+
+
+def failure_reason(row: dict) -> str:
+    code = row.get("exit_code")
+    try:
+        code_text = str(int(code))
+    except (TypeError, ValueError, OverflowError):
+        code_text = "?"
+    cls = _text(row.get("exit_class")) or "not run"
+    message = _text(row.get("message")) or "no message"
+    return f"exit {code_text}, {cls}: {message}"
+
+
+def describe(limits: Limits | None) -> list[tuple[str, str]]:
+    """(key, value with unit) of every limit set, for the summary page."""
+    out = []
+    if limits is None:
+        return out
+    for key, (_, unit, _absolute) in CHECKS.items():
+        value = getattr(limits, key)
+        if value is not None:
+            out.append((key, f"{value:g} {unit}".strip()))
+    for key in LIST_KEYS:
+        value = getattr(limits, key)
+        if value:
+            out.append((key, ", ".join(value)))
+    return out
+
+
+def kinds_of(text) -> list[str]:
+    """The kinds of a comma-separated column ("saturation,spikes"), in order, without blanks."""
+    return [k for k in (part.strip() for part in _text(text).split(",")) if k]
+
+
+def _broken(column: str, value: float, limit: float, unit: str) -> str:
+    digits = _decimals(limit)
+    shown = abs(value)
+    while digits < 9 and f"{shown:.{digits}f}" == f"{limit:.{digits}f}":  # 0.5004 > 0.50 must not read 0.50 > 0.50
+        digits += 1
+    return f"{column} = {value:.{digits}f} > {limit:.{digits}f}{' ' + unit if unit else ''}"
+
+
+def _decimals(limit: float) -> int:
+    """Two significant figures of the limit (0.50, 2000, 0.050), at least none."""
+    if limit <= 0:
+        return 3
+    return max(0, 1 - math.floor(math.log10(limit)))
+
+
+def _float(value) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _text(value) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    return str(value)
+
+
+__all__ = ["Limits", "load_limits", "parse_limits", "verdict", "with_verdicts", "describe", "KEYS",
+           "FINDING_KINDS", "WARNING_KINDS"]
