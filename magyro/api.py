@@ -214,11 +214,36 @@ def simulate_file(problem: str, output, seed: int = 0) -> tuple[Session, Path]:
     return session, truth_path
 
 
+def simulate_fleet_dir(problem: str, seeds_text: str, outdir) -> tuple[list[Path], Path]:
+    """`magyro simulate PROBLEM --seeds A-B -o DIR`: one session per device (its errors drawn from the problem's
+    [spread], `magyro.studies.fleet`), each with its truth, and DIR/manifest.csv; DIR is created. Returns the
+    session paths and the manifest's path."""
+    from magyro.studies.fleet import MANIFEST, parse_seeds, simulate_fleet
+
+    seeds = parse_seeds(seeds_text)   # before any work or folder
+    outdir = Path(outdir)
+    if outdir.exists() and not outdir.is_dir():
+        raise InputError(f"with --seeds, -o is a folder; {outdir} exists and is not one: choose another path")
+    from magyro.progress import step
+    from magyro.studies.scenario import load_problem
+
+    scenario = load_problem(problem)   # an unusable problem leaves no folder behind
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create the folder {outdir}: {exc.strerror or exc}; choose another path") from None
+    step(f"simulating {len(seeds)} devices")
+    paths = simulate_fleet(scenario, seeds, outdir, progress=lambda done, total, path: step(
+        f"simulated device {done}/{total} ({path.name})"))
+    return paths, outdir / MANIFEST
+
+
 def montecarlo_study(problem: str, runs: int, *, jobs: int = 1, method: str = "nls", seed0: int = 0, output=None,
-                     csv_path=None, progress: bool = True):
+                     csv_path=None, progress: bool = True, scheduler: str | None = None):
     """`magyro montecarlo`: `runs` seeded sessions of a problem, each solved; the table, written when asked.
 
-    `progress` shows a bar (or a line per run) on stderr.
+    `progress` shows a bar (or a line per run) on stderr; `scheduler` (a Dask scheduler's address) solves on
+    that cluster instead of the local pool (`magyro.executor`).
     """
     from magyro.io import check_outputs
     check_outputs([problem], [output, csv_path])  # before any work: no input overwritten, all writable
@@ -228,7 +253,8 @@ def montecarlo_study(problem: str, runs: int, *, jobs: int = 1, method: str = "n
 
     scenario = load_problem(problem)
     with progress_display(runs, enabled=progress) as show:
-        result = run_montecarlo(scenario, runs, jobs=jobs, method=method, seed0=seed0, progress=show)
+        result = run_montecarlo(scenario, runs, jobs=jobs, method=method, seed0=seed0, progress=show,
+                                scheduler=scheduler)
     write_outputs(result, output, csv_path)
     return result
 

@@ -26,6 +26,7 @@ died, comes back as its error, and the others go on.
 from __future__ import annotations
 
 import concurrent.futures as cf
+from concurrent.futures.process import BrokenProcessPool
 import contextlib
 import multiprocessing
 import os
@@ -37,6 +38,7 @@ WORKER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_T
                            "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
 DEFAULT_START_METHOD = "spawn"
 SCHEDULER_VARIABLE = "MAGYRO_SCHEDULER"
+CONNECT_TIMEOUT = "10s"
 TASKS_IN_FLIGHT_PER_WORKER = 2
 _NOTHING = object()
 
@@ -82,6 +84,9 @@ class InProcess:
     def wait_any(self, futures: set) -> set:
         return {f for f in futures if f.done()}
 
+    def restart(self) -> None:
+        return None
+
     def describe(self) -> str:
         return "this process"
 
@@ -102,6 +107,11 @@ class LocalPool:
             self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=context,
                                                 initializer=single_threaded_worker)
         return self
+
+    def restart(self) -> None:
+        """A new pool after a worker died (a broken pool takes no more tasks)."""
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        self.__enter__()
 
     def __exit__(self, exc_type, *exc) -> None:
         if self._pool is not None:
@@ -136,7 +146,7 @@ class DaskCluster:
         except ImportError:
             raise InputError("--scheduler needs dask.distributed: pip install 'magyro[dask]'") from None
         try:
-            self.client = Client(self.address, timeout="20s")
+            self.client = Client(self.address, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError) as exc:
             raise InputError(f"no Dask scheduler answers at {self.address} ({type(exc).__name__}: {exc}); start one "
                              "with `dask scheduler` and workers with `dask worker ADDRESS --nthreads 1`, or leave "
@@ -154,6 +164,9 @@ class DaskCluster:
 
     def submit(self, fn: Callable, *args):
         return self.client.submit(fn, *args, pure=False)
+
+    def restart(self) -> None:
+        return None
 
     def wait_any(self, futures: set) -> set:
         from distributed import wait
@@ -173,23 +186,31 @@ def run_unordered(executor, fn: Callable, items: Iterable, done: Callable[[Any, 
     `done(item, result, None)` or `done(item, None, error)` as each finishes, in the order they finish.
 
     `warm_first`: the first item runs alone, the rest after it, so what it compiles into the kernel cache
-    (a cold machine's solver kernels) is compiled once rather than by every worker at the same time."""
-    limit = max(1, TASKS_IN_FLIGHT_PER_WORKER * executor.workers)
+    (a cold machine's solver kernels) is compiled once rather than by every worker at the same time.
+
+    A worker that dies breaks a local pool and every task in flight with it: the pool is started again, the
+    others go on, and the items that were in flight are run again one at a time, so only the one that kills
+    its worker again fails (with the pool's error). A Dask cluster retries a dead worker's task itself."""
+    iterator = iter(items)
     if warm_first and executor.workers > 1:
-        iterator = iter(items)
         first = next(iterator, _NOTHING)
         if first is _NOTHING:
             return
-        run_unordered(executor, fn, [first], done, arguments)
-        items = iterator
+        suspects = _run_window(executor, fn, iter([first]), done, arguments, 1)
+        _run_alone(executor, fn, suspects, done, arguments)
+    suspects = _run_window(executor, fn, iterator, done, arguments, TASKS_IN_FLIGHT_PER_WORKER * executor.workers)
+    _run_alone(executor, fn, suspects, done, arguments)
+
+
+def _run_window(executor, fn, iterator, done, arguments, limit: int) -> list:
+    """Run the items with at most `limit` in flight; the items in flight when a local pool broke."""
     pending: dict = {}
-    iterator = iter(items)
+    suspects: list = []
     exhausted = False
     while pending or not exhausted:
-        while not exhausted and len(pending) < limit:
-            try:
-                item = next(iterator)
-            except StopIteration:
+        while not exhausted and len(pending) < max(1, limit):
+            item = next(iterator, _NOTHING)
+            if item is _NOTHING:
                 exhausted = True
                 break
             pending[executor.submit(fn, *arguments(item))] = item
@@ -199,10 +220,32 @@ def run_unordered(executor, fn: Callable, items: Iterable, done: Callable[[Any, 
             item = pending.pop(future)
             try:
                 result = future.result()
-            except Exception as exc:   # the task raised, or its worker died (BrokenProcessPool, KilledWorker)
+            except BrokenProcessPool:   # some worker died: every task in flight is lost, not only its own
+                suspects.append(item)
+                suspects.extend(pending.values())
+                pending.clear()
+                executor.restart()
+                break
+            except Exception as exc:   # the task raised, or its Dask worker died (KilledWorker)
                 done(item, None, exc)
             else:
                 done(item, result, None)
+    return suspects
+
+
+def _run_alone(executor, fn, items: list, done, arguments) -> None:
+    """Each item alone (a broken pool's suspects): one that breaks the pool again is the one that kills it."""
+    for item in items:
+        future = executor.submit(fn, *arguments(item))
+        try:
+            result = future.result()
+        except BrokenProcessPool as exc:
+            executor.restart()
+            done(item, None, exc)
+        except Exception as exc:
+            done(item, None, exc)
+        else:
+            done(item, result, None)
 
 
 # --------------------------------------------------------------------------- worker set-up

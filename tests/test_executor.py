@@ -1,0 +1,101 @@
+"""The executor layer (issue 15): a dead worker fails only its own task on the local pool, and a real Dask
+cluster on localhost (a scheduler and two worker processes) gives `magyro batch` and `magyro montecarlo` the
+same numbers, bit for bit, as `--jobs 2`, with a broken session isolated there too."""
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+from magyro.executor import DaskCluster, InProcess, LocalPool, executor_for, run_unordered
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from test_batch import calibration_numbers, fleet  # noqa: E402,F401  (fleet: the fixture)
+
+
+def square_or_die(k: int) -> int:
+    """A task whose worker dies on k == 3 (as a segfault in a native library would kill it)."""
+    if k == 3:
+        os._exit(7)
+    return k * k
+
+
+@pytest.mark.parametrize("executor", [LocalPool(2)], ids=["local-pool"])
+def test_a_worker_that_dies_fails_only_its_own_task(executor):
+    results, errors = {}, {}
+
+    def done(k, result, error):
+        (errors if error is not None else results)[k] = error or result
+
+    with executor:
+        run_unordered(executor, square_or_die, range(8), done)
+    assert results == {k: k * k for k in range(8) if k != 3}
+    assert list(errors) == [3] and "BrokenProcessPool" in type(errors[3]).__name__
+
+
+def test_executor_choice():
+    assert isinstance(executor_for(1), InProcess)
+    assert isinstance(executor_for(2), LocalPool)
+    assert isinstance(executor_for(2, "tcp://127.0.0.1:1"), DaskCluster)
+
+
+# --------------------------------------------------------------------------- a real Dask cluster on localhost
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    distributed = pytest.importorskip("distributed", reason="the Dask tests need magyro[dask] (dask.distributed)")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  silence_logs=40) as c:
+        yield c.scheduler_address
+
+
+def test_no_scheduler_is_one_clear_message(tmp_path):
+    pytest.importorskip("distributed", reason="needs dask.distributed")
+    import subprocess
+
+    r = subprocess.run([sys.executable, "-m", "magyro", "montecarlo", "paper-table1", "-n", "1", "--scheduler",
+                        "tcp://127.0.0.1:9"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "no Dask scheduler answers at tcp://127.0.0.1:9" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_batch_on_dask_equals_the_local_pool_bit_for_bit(cluster, fleet, tmp_path):
+    from magyro.batch.run import run_batch
+    from magyro.io import write_session
+
+    import degrade
+
+    extra = tmp_path / "extra"
+    extra.mkdir()
+    write_session(degrade.burst_stamps(degrade.load("broad-02")), extra / "broad-02-bursty.parquet")
+    (extra / "broken.parquet").write_bytes(b"not a session")
+    inputs = [fleet / "manifest.csv", extra]
+    pool = run_batch(inputs, tmp_path / "pool", jobs=2)
+    dask = run_batch(inputs, tmp_path / "dask", scheduler=cluster)
+    assert "Dask cluster" in dask.executor and "local pool" in pool.executor
+    assert [r["device_id"] for r in dask.rows] == [r["device_id"] for r in pool.rows]
+    for a, b in zip(pool.rows, dask.rows):
+        assert (a["exit_code"], a["message"], a["verdict"]) == (b["exit_code"], b["message"], b["verdict"])
+        if a["calibration"]:
+            A = calibration_numbers(tmp_path / "pool" / a["calibration"])
+            B = calibration_numbers(tmp_path / "dask" / b["calibration"])
+            assert set(A) >= {"gyro", "std"} and A == B, a["device_id"]
+    broken = next(r for r in dask.rows if r["device_id"] == "broken")
+    assert broken["exit_code"] == 2 and "parquet" in broken["message"].lower()
+    assert sum(r["exit_code"] == 0 for r in dask.rows) == 4
+
+
+def test_montecarlo_on_dask_equals_the_local_pool_bit_for_bit(cluster):
+    from magyro.studies.montecarlo import run_montecarlo
+    from magyro.studies.scenario import load_problem
+
+    problem = load_problem("short-30s")
+    pool = run_montecarlo(problem, 4, jobs=2)
+    dask = run_montecarlo(problem, 4, scheduler=cluster)
+    for a, b in zip(pool.methods["nls"].outcomes, dask.methods["nls"].outcomes):
+        assert a.ok and b.ok and (a.seed, a.estimate, a.reported_std) == (b.seed, b.estimate, b.reported_std)
+    assert pool.crlb == dask.crlb and pool.crlb
