@@ -16,7 +16,8 @@ Compiled kernels: a worker loads the solver's kernels from the kernel cache
 (`magyro.nls.kernels.cache_dir()`), once per process, and compiles a missing one once
 per machine (the cache is written atomically, so workers never see half a library).
 Dask workers on other machines get the client's cached kernels once, when they join
-(`magyro.dask_kernels.KernelCache`, a worker plugin), not with every task.
+(`magyro.dask_worker.MagyroWorker`, a worker plugin, which also undoes the nanny's malloc
+setting that made solves 1.7x slower), not with every task.
 
 `run_unordered(executor, fn, items, done)` keeps at most a few tasks per worker in
 flight, so the client's memory does not grow with the number of items, and calls
@@ -151,9 +152,9 @@ class DaskCluster:
             raise InputError(f"no Dask scheduler answers at {self.address} ({type(exc).__name__}: {exc}); start one "
                              "with `dask scheduler` and workers with `dask worker ADDRESS --nthreads 1`, or leave "
                              f"--scheduler and {SCHEDULER_VARIABLE} unset for the local pool") from None
-        from magyro.dask_kernels import KernelCache
+        from magyro.dask_worker import MagyroWorker
 
-        self.client.register_plugin(KernelCache.from_local_cache(), name=KernelCache.name)
+        self.client.register_plugin(MagyroWorker.from_local_cache(), name=MagyroWorker.name)
         self.workers = max(1, sum(w.get("nthreads", 1) for w in self.client.scheduler_info()["workers"].values()))
         return self
 

@@ -99,3 +99,19 @@ def test_montecarlo_on_dask_equals_the_local_pool_bit_for_bit(cluster):
     for a, b in zip(pool.methods["nls"].outcomes, dask.methods["nls"].outcomes):
         assert a.ok and b.ok and (a.seed, a.estimate, a.reported_std) == (b.seed, b.estimate, b.reported_std)
     assert pool.crlb == dask.crlb and pool.crlb
+
+
+def test_dask_workers_get_the_clients_kernels_once_when_they_join(tmp_path, monkeypatch):
+    """A worker with its own (empty) kernel cache, as on another machine, holds the client's compiled kernels
+    after joining, before any task; and its malloc is set back to an ordinary process's."""
+    distributed = pytest.importorskip("distributed", reason="needs dask.distributed")
+    client_cache, worker_cache = tmp_path / "client", tmp_path / "worker"
+    client_cache.mkdir()
+    (client_cache / "kernel_abc.so").write_bytes(b"\x7fELF compiled kernel")
+    monkeypatch.setenv("MAGYRO_CACHE_DIR", str(client_cache))
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  silence_logs=40, env={"MAGYRO_CACHE_DIR": str(worker_cache)}) as c:
+        with DaskCluster(c.scheduler_address) as executor:
+            assert (worker_cache / "kernel_abc.so").read_bytes() == b"\x7fELF compiled kernel"
+            from magyro.dask_worker import ordinary_malloc
+            assert executor.submit(ordinary_malloc).result() is True
