@@ -1,7 +1,7 @@
 """Issue 15's batch benchmark: a fleet of 100 s sessions, 5 % of them hostile, on 1 and 2 workers of the local
 pool and of a Dask cluster on localhost; prints one table.
 
-    python benchmarks/bench_batch.py                    # 200 sessions (about 12 minutes on 2 cores)
+    python benchmarks/bench_batch.py                    # 200 sessions (about 15 minutes on 2 cores)
     python benchmarks/bench_batch.py --sessions 40      # a quicker look
 
 The fleet: `production-line` devices (`magyro simulate production-line --seeds`, each with its own errors),
@@ -9,7 +9,8 @@ with every 20th replaced by a hostile input made from the shipped real BROAD tri
 break it (tests/degrade.py) or a file that is not a session. Columns:
 
     wall_s            the whole batch (run_batch: hashing, workers' start, solves, outputs, summary)
-    devices_per_s     sessions / wall_s;  speedup: against 1 worker of the same executor
+    devices_per_s     sessions / wall_s;  speedup: against 1 worker of the same executor ("in process" is
+                      `--jobs 1`, which solves in the client itself; "local pool 1" a pool of one process)
     overhead_ms       per task, (wall_s * workers - sum of the solves' own seconds) / sessions: everything
                       that is not solving (start-up, dispatch, results, writing, the idle tail)
     dispatch_ms       per task, an empty task's round trip through the executor (200 of them, all workers)
@@ -95,13 +96,14 @@ def dispatch_ms(executor, n: int = 200) -> float:
         return 1e3 * (time.perf_counter() - t0) * executor.workers / n
 
 
-def one_run(inputs, out: Path, expected: dict, jobs: int = 1, scheduler: str | None = None) -> dict:
+def one_run(inputs, out: Path, expected: dict, jobs: int = 1, scheduler: str | None = None, executor=None) -> dict:
     from magyro.batch.run import run_batch
 
     t0 = time.perf_counter()
-    result = run_batch(inputs, out, jobs=jobs, scheduler=scheduler, redo=True)
+    result = run_batch(inputs, out, jobs=jobs, scheduler=scheduler, redo=True, executor=executor)
     wall = time.perf_counter() - t0
-    workers = jobs if scheduler is None else int(result.executor.split("(")[1].split()[0])
+    workers = executor.workers if executor is not None else jobs if scheduler is None else \
+        int(result.executor.split("(")[1].split()[0])
     rows = result.rows
     solve_s = sum(r["seconds"] for r in rows)
     good = [r for r in rows if r["device_id"] not in expected]
@@ -139,9 +141,11 @@ def main() -> None:
         run_batch([next((tmp / 'fleet').glob('production-line-*.parquet'))], tmp / "warm")
 
         runs = {}
-        runs[("local pool", 1)] = one_run(inputs, tmp / "local1", expected, jobs=1)
+        runs[("in process", 1)] = one_run(inputs, tmp / "inprocess", expected, jobs=1)
+        runs[("local pool", 1)] = one_run(inputs, tmp / "local1", expected, executor=LocalPool(1))
         runs[("local pool", 2)] = one_run(inputs, tmp / "local2", expected, jobs=2)
-        dispatch = {("local pool", 1): 0.0, ("local pool", 2): dispatch_ms(LocalPool(2))}
+        dispatch = {("in process", 1): 0.0, ("local pool", 1): dispatch_ms(LocalPool(1)),
+                    ("local pool", 2): dispatch_ms(LocalPool(2))}
         if not args.skip_dask:
             from distributed import LocalCluster
 
@@ -152,10 +156,10 @@ def main() -> None:
                                                       scheduler=cluster.scheduler_address)
                     dispatch[("dask", workers)] = dispatch_ms(DaskCluster(cluster.scheduler_address))
 
-        print(f"\n| executor | workers | wall_s | devices_per_s | speedup | overhead_ms | dispatch_ms | good | broken |")
+        print("\n| executor | workers | wall_s | devices_per_s | speedup | overhead_ms | dispatch_ms | good | broken |")
         print("|---|---|---|---|---|---|---|---|---|")
         for (name, workers), r in runs.items():
-            speedup = r["devices_per_s"] / runs[(name, 1)]["devices_per_s"]
+            speedup = r["devices_per_s"] / runs[(name, 1)]["devices_per_s"]   # against 1 worker of its own kind
             print(f"| {name} | {workers} | {r['wall_s']:.1f} | {r['devices_per_s']:.2f} | {speedup:.2f}x | "
                   f"{r['overhead_ms']:.0f} | {dispatch[(name, workers)]:.1f} | {r['good']} | {r['broken']} |")
         for (name, workers), r in runs.items():

@@ -41,6 +41,7 @@ DEFAULT_START_METHOD = "spawn"
 SCHEDULER_VARIABLE = "MAGYRO_SCHEDULER"
 CONNECT_TIMEOUT = "10s"
 TASKS_IN_FLIGHT_PER_WORKER = 2
+FRUITLESS_RESTARTS = 3
 _NOTHING = object()
 
 
@@ -101,6 +102,9 @@ class LocalPool:
         self.workers = workers
         self.start_method = start_method
         self._pool: cf.ProcessPoolExecutor | None = None
+        self._finished = 0            # tasks that came back from a worker (a result or the task's own error)
+        self._finished_at_restart = 0
+        self._fruitless_restarts = 0  # restarts in a row with no task back in between
 
     def __enter__(self):
         context = multiprocessing.get_context(self.start_method)
@@ -110,8 +114,20 @@ class LocalPool:
         return self
 
     def restart(self) -> None:
-        """A new pool after a worker died (a broken pool takes no more tasks)."""
+        """A new pool after a worker died (a broken pool takes no more tasks). SolverError at the third break in
+        a row with no task back in between: one task that kills its worker breaks the pool twice (its run and
+        its run alone), so a third means the workers cannot run anything, and restarting is futile."""
         self._pool.shutdown(wait=False, cancel_futures=True)
+        fruitless = self._finished == self._finished_at_restart
+        self._fruitless_restarts = self._fruitless_restarts + 1 if fruitless else 1
+        self._finished_at_restart = self._finished
+        if self._fruitless_restarts >= FRUITLESS_RESTARTS:
+            from magyro.errors import SolverError
+
+            raise SolverError(
+                "the worker processes die before finishing any task: a script that runs a batch or a study "
+                "with --jobs > 1 must start its work under `if __name__ == \"__main__\":` (the workers import it); "
+                "otherwise run it with jobs=1 to see the error")
         self.__enter__()
 
     def __exit__(self, exc_type, *exc) -> None:
@@ -122,7 +138,13 @@ class LocalPool:
 
     def submit(self, fn: Callable, *args) -> cf.Future:
         with single_threaded_children():   # a worker the pool starts now reads them at import
-            return self._pool.submit(fn, *args)
+            future = self._pool.submit(fn, *args)
+        future.add_done_callback(self._count)
+        return future
+
+    def _count(self, future: cf.Future) -> None:
+        if not future.cancelled() and not isinstance(future.exception(), BrokenProcessPool):
+            self._finished += 1
 
     def wait_any(self, futures: set) -> set:
         return cf.wait(futures, return_when=cf.FIRST_COMPLETED).done

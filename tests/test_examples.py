@@ -50,3 +50,13 @@ def test_dead_reckoning(tmp_path):
     out = run_example("dead_reckoning.py", tmp_path)
     raw, calibrated = (float(re.search(rf"{name} gyro +([\d.]+)", out).group(1)) for name in ("raw", "calibrated"))
     assert calibrated < 0.2 * raw, out
+
+
+def test_calibrate_a_fleet(tmp_path):
+    out = run_example("calibrate_a_fleet.py", tmp_path, tmp_path / "fleet")
+    counts = re.search(r"4 devices: (\d+) accepted, (\d+) rejected, (\d+) failed", out)
+    assert counts and int(counts.group(3)) == 0, out
+    assert int(counts.group(1)) + int(counts.group(2)) == 4
+    rejected = [line for line in out.splitlines() if ": rejected: " in line]
+    assert len(rejected) == int(counts.group(2)) and all("deg/s" in line for line in rejected), out
+    assert (tmp_path / "fleet" / "batch" / "summary.html").exists()

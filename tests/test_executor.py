@@ -17,23 +17,24 @@ from test_batch import calibration_numbers, fleet  # noqa: E402,F401  (fleet: th
 
 
 def square_or_die(k: int) -> int:
-    """A task whose worker dies on k == 3 (as a segfault in a native library would kill it)."""
-    if k == 3:
+    """A task whose worker dies on k == 3 or 0 (as a segfault in a native library would kill it)."""
+    if k in (0, 3):
         os._exit(7)
     return k * k
 
 
-@pytest.mark.parametrize("executor", [LocalPool(2)], ids=["local-pool"])
-def test_a_worker_that_dies_fails_only_its_own_task(executor):
+@pytest.mark.parametrize("warm_first", [False, True], ids=["window", "first-alone"])
+def test_a_worker_that_dies_fails_only_its_own_task(warm_first):
+    """Even the first task, run alone to warm the kernels, may kill its worker without stopping the rest."""
     results, errors = {}, {}
 
     def done(k, result, error):
         (errors if error is not None else results)[k] = error or result
 
-    with executor:
-        run_unordered(executor, square_or_die, range(8), done)
-    assert results == {k: k * k for k in range(8) if k != 3}
-    assert list(errors) == [3] and "BrokenProcessPool" in type(errors[3]).__name__
+    with LocalPool(2) as executor:
+        run_unordered(executor, square_or_die, range(8), done, warm_first=warm_first)
+    assert results == {k: k * k for k in range(8) if k not in (0, 3)}
+    assert sorted(errors) == [0, 3] and all("BrokenProcessPool" in type(e).__name__ for e in errors.values())
 
 
 def test_executor_choice():
@@ -115,3 +116,18 @@ def test_dask_workers_get_the_clients_kernels_once_when_they_join(tmp_path, monk
             assert (worker_cache / "kernel_abc.so").read_bytes() == b"\x7fELF compiled kernel"
             from magyro.dask_worker import ordinary_malloc
             assert executor.submit(ordinary_malloc).result() is True
+
+
+def test_workers_that_cannot_start_are_one_clear_error_not_a_crashed_fleet(fleet, tmp_path):
+    """A script that runs a batch with jobs=2 without `if __name__ == "__main__":` kills every worker it starts
+    (each re-runs the script); the batch stops with the cause instead of restarting the pool forever."""
+    import subprocess
+
+    script = tmp_path / "no_main_guard.py"
+    script.write_text("from magyro.batch import run_batch\n"
+                      f"run_batch([{str(fleet / 'manifest.csv')!r}], {str(tmp_path / 'out')!r}, jobs=2)\n")
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert r.returncode != 0
+    assert 'must start its work under `if __name__ == "__main__":`' in r.stderr.splitlines()[-1]
+    rows = [json.loads(p.read_text())["row"] for p in (tmp_path / "out" / "rows").glob("*.json")]
+    assert len(rows) <= 2 and all(r["exit_class"] == "crashed" for r in rows)   # tried again by a rerun

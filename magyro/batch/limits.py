@@ -17,16 +17,16 @@ from pathlib import Path
 
 from magyro.batch.row import AXES, EULER, PAIRS
 from magyro.errors import InputError
+from magyro.front.findings import KINDS
 
 try:  # Python >= 3.11
     import tomllib
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
-# the recording check's finding kinds (magyro.front: recording, signals, repairs) and the calibration's
-# other warning kinds (magyro.batch.row.warning_kind); "any" in reject_warnings rejects every warning
-FINDING_KINDS = ("bursts", "clock_drift", "gaps", "gyro_holes", "gyro_unit", "held", "jitter", "overlap", "samples",
-                 "saturation", "spikes", "time_offset", "time_unit")
+# the recording check's finding kinds and the calibration's other warning kinds (magyro.batch.row.warning_kind);
+# "any" in reject_warnings rejects every warning
+FINDING_KINDS = KINDS
 WARNING_KINDS = FINDING_KINDS + ("split_check", "forced", "rests", "other")
 ANY = "any"
 SPLIT_HINT = "run the batch with --split-check"

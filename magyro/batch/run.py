@@ -68,11 +68,12 @@ class BatchResult:
 def run_batch(inputs: list, outdir, options: Options | None = None, *, method: str = "nls",
               knobs: dict | None = None, limits=None, jobs: int = 1, scheduler: str | None = None,
               redo: bool = False, reports: bool = False, gyro_unit: str | None = None, mag_unit: str | None = None,
-              progress: Callable[[int, int, dict], None] | None = None) -> BatchResult:
+              progress: Callable[[int, int, dict], None] | None = None, executor=None) -> BatchResult:
     """Calibrate every device the inputs name (see `magyro.batch.inputs`) into `outdir`; the fleet's summary.
 
     `limits` is a `magyro.batch.limits.Limits` (or None: every calibrated device is accepted);
     `progress(done, total, row)` is called as each device finishes (resumed ones included).
+    `executor` (a `magyro.executor` executor, not yet entered) replaces the one `jobs` and `scheduler` choose.
     """
     from magyro.batch.limits import with_verdicts
     from magyro.batch.summary import write_summary
@@ -106,7 +107,7 @@ def run_batch(inputs: list, outdir, options: Options | None = None, *, method: s
         if progress is not None:
             progress(len(rows), len(devices), row)
 
-    executor = executor_for(jobs, scheduler)
+    executor = executor or executor_for(jobs, scheduler)
     with executor:
         run_unordered(executor, calibrate_device, tasks, done, arguments=lambda item: (item[0],), warm_first=True)
     ordered = with_verdicts([rows[d.device_id] for d in devices], limits)

@@ -13,6 +13,9 @@ from magyro.session import HOLE_FACTOR
 SCHEMA = "magyro.recording/1"
 SENSORS = ("gyro", "magnetometer")
 SEVERITIES = ("info", "warning", "error")
+# every kind of finding the check makes (magyro.front: recording, signals, repairs); acceptance limits name them
+KINDS = ("bursts", "clock_drift", "gaps", "gyro_holes", "gyro_unit", "held", "jitter", "overlap", "samples",
+         "saturation", "spikes", "time_offset", "time_unit")
 GAP_PERIODS = HOLE_FACTOR         # an interval longer than this many periods is a gap: the solve's hole
 
 
@@ -29,6 +32,10 @@ class Finding:
     fix: str = ""                 # what the user or magyro does
     repaired: bool = False        # magyro repaired it (repair_recording)
     numbers: dict = field(default_factory=dict)  # the measured values, machine-readable
+
+    def __post_init__(self):
+        if self.kind not in KINDS:   # a new kind must be added to KINDS, where limits files look them up
+            raise ValueError(f"unknown finding kind {self.kind!r}; add it to magyro.front.findings.KINDS")
 
     def to_dict(self) -> dict:
         return {"kind": self.kind, "sensor": self.sensor, "severity": self.severity, "message": self.message,
