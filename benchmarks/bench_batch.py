@@ -14,6 +14,8 @@ break it (tests/degrade.py) or a file that is not a session. Columns:
     overhead_ms       per task, (wall_s * workers - sum of the solves' own seconds) / sessions: everything
                       that is not solving (start-up, dispatch, results, writing, the idle tail)
     dispatch_ms       per task, an empty task's round trip through the executor (200 of them, all workers)
+    client_heap_MB    the client's peak Python heap during the batch (tracemalloc; not for "in process",
+                      whose client is the solver): what grows with the number of devices
     good/broken       calibrated good devices / broken ones named with the right exit code
 
 Targets (issue 15): 2 workers >= 1.8x the throughput of 1, on both executors; Dask within 10 % of the local
@@ -24,10 +26,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import shutil
 import sys
 import tempfile
 import time
+import tracemalloc
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -99,9 +103,14 @@ def dispatch_ms(executor, n: int = 200) -> float:
 def one_run(inputs, out: Path, expected: dict, jobs: int = 1, scheduler: str | None = None, executor=None) -> dict:
     from magyro.batch.run import run_batch
 
+    in_client = executor is None and jobs == 1 and scheduler is None   # then the solves' memory is the client's
+    if not in_client:
+        tracemalloc.start()
     t0 = time.perf_counter()
     result = run_batch(inputs, out, jobs=jobs, scheduler=scheduler, redo=True, executor=executor)
     wall = time.perf_counter() - t0
+    heap_mb = math.nan if in_client else tracemalloc.get_traced_memory()[1] / 2**20
+    tracemalloc.stop()
     workers = executor.workers if executor is not None else jobs if scheduler is None else \
         int(result.executor.split("(")[1].split()[0])
     rows = result.rows
@@ -109,7 +118,7 @@ def one_run(inputs, out: Path, expected: dict, jobs: int = 1, scheduler: str | N
     good = [r for r in rows if r["device_id"] not in expected]
     named = sum(1 for r in rows if r["device_id"] in expected and r["exit_code"] == expected[r["device_id"]]
                 and r["message"])
-    return {"wall_s": wall, "workers": workers, "devices_per_s": len(rows) / wall,
+    return {"wall_s": wall, "workers": workers, "client_heap_mb": heap_mb, "devices_per_s": len(rows) / wall,
             "overhead_ms": 1e3 * (wall * workers - solve_s) / len(rows),
             "good": f"{sum(r['exit_code'] == 0 for r in good)}/{len(good)}", "broken": f"{named}/{len(expected)}",
             "failures": [(r["device_id"], r["exit_code"], r["message"][:90]) for r in good if r["exit_code"] != 0]}
@@ -156,12 +165,14 @@ def main() -> None:
                                                       scheduler=cluster.scheduler_address)
                     dispatch[("dask", workers)] = dispatch_ms(DaskCluster(cluster.scheduler_address))
 
-        print("\n| executor | workers | wall_s | devices_per_s | speedup | overhead_ms | dispatch_ms | good | broken |")
-        print("|---|---|---|---|---|---|---|---|---|")
+        print("\n| executor | workers | wall_s | devices_per_s | speedup | overhead_ms | dispatch_ms | client_heap_MB "
+              "| good | broken |")
+        print("|---|---|---|---|---|---|---|---|---|---|")
         for (name, workers), r in runs.items():
             speedup = r["devices_per_s"] / runs[(name, 1)]["devices_per_s"]   # against 1 worker of its own kind
             print(f"| {name} | {workers} | {r['wall_s']:.1f} | {r['devices_per_s']:.2f} | {speedup:.2f}x | "
-                  f"{r['overhead_ms']:.0f} | {dispatch[(name, workers)]:.1f} | {r['good']} | {r['broken']} |")
+                  f"{r['overhead_ms']:.0f} | {dispatch[(name, workers)]:.1f} | {r['client_heap_mb']:.1f} | {r['good']} | "
+                  f"{r['broken']} |")
         for (name, workers), r in runs.items():
             for failure in r["failures"]:
                 print(f"  good device failed on {name} x{workers}: {failure}")

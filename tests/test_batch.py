@@ -202,3 +202,10 @@ def test_inputs_are_checked_before_any_work(fleet, tmp_path):
         run_batch([str(inside)], tmp_path / "out")
     assert inside.read_bytes() == (fleet / "production-line-0000.parquet").read_bytes()
     assert not (tmp_path / "out" / "rows").exists()
+
+
+def test_reports_are_written_per_device(fleet, tmp_path):
+    pytest.importorskip("matplotlib", reason="the device reports need magyro[plot]")
+    result = run_batch([fleet / "production-line-0000.parquet"], tmp_path / "out", reports=True)
+    page = (tmp_path / "out" / "reports" / "production-line-0000.html").read_text()
+    assert result.rows[0]["exit_code"] == 0 and page.startswith("<!DOCTYPE html>") and "production-line-0000" in page

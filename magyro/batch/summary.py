@@ -376,7 +376,7 @@ th { font-weight: 600; color: var(--muted); font-size: 12.5px; border-bottom: 2p
 td { overflow-wrap: anywhere; }
 table.numbers td:nth-child(n+3):nth-child(-n+5) { text-align: right; font-variant-numeric: tabular-nums; }
 table.keyvalue td:first-child { color: var(--muted); width: 42%; }
-.pill { display: inline-block; font-size: 11.5px; font-weight: 700; text-transform: uppercase; padding: 2px 9px;
+.pill { display: inline-block; white-space: nowrap; font-size: 11.5px; font-weight: 700; text-transform: uppercase; padding: 2px 9px;
         border-radius: 999px; color: #fff; background: #8a939c; }
 .pill.fair { background: var(--fair); } .pill.poor { background: var(--poor); }
 section { border-top: 1px solid var(--line); padding-top: 26px; margin-top: 30px; }
