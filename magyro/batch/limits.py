@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from magyro.batch.row import AXES, EULER, PAIRS
+from magyro.batch.row import AXES, EULER, PAIRS, number_of, text_of
 from magyro.errors import InputError
 from magyro.front.findings import KINDS
 
@@ -154,7 +154,7 @@ def verdict(row: dict, limits: Limits | None) -> tuple[str, str]:
         if limit is None:
             continue
         for column in columns:
-            value = _float(row.get(column))
+            value = number_of(row.get(column))
             if not math.isfinite(value):
                 hint = SPLIT_HINT if column == "split_rms_z" else "the calibration did not give it"
                 reasons.append(f"{column} not measured ({hint})")
@@ -184,8 +184,8 @@ def failure_reason(row: dict) -> str:
         code_text = str(int(code))
     except (TypeError, ValueError, OverflowError):
         code_text = "?"
-    cls = _text(row.get("exit_class")) or "not run"
-    message = _text(row.get("message")) or "no message"
+    cls = text_of(row.get("exit_class")) or "not run"
+    message = text_of(row.get("message")) or "no message"
     return f"exit {code_text}, {cls}: {message}"
 
 
@@ -207,7 +207,7 @@ def describe(limits: Limits | None) -> list[tuple[str, str]]:
 
 def kinds_of(text) -> list[str]:
     """The kinds of a comma-separated column ("saturation,spikes"), in order, without blanks."""
-    return [k for k in (part.strip() for part in _text(text).split(",")) if k]
+    return [k for k in (part.strip() for part in text_of(text).split(",")) if k]
 
 
 def _broken(column: str, value: float, limit: float, unit: str) -> str:
@@ -223,19 +223,6 @@ def _decimals(limit: float) -> int:
     if limit <= 0:
         return 3
     return max(0, 1 - math.floor(math.log10(limit)))
-
-
-def _float(value) -> float:
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return math.nan
-
-
-def _text(value) -> str:
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return ""
-    return str(value)
 
 
 __all__ = ["Limits", "load_limits", "parse_limits", "verdict", "with_verdicts", "describe", "KEYS",

@@ -127,3 +127,18 @@ def row_from_calibration(device_id: str, session: str, cal) -> dict:
                warnings=" | ".join(cal.warnings))
     return {k: (float(v) if isinstance(v, (np.floating, np.integer)) and k != "exit_code" else v)
             for k, v in row.items()}
+
+
+def number_of(value) -> float:
+    """A row's value as a float (NaN when it is none: a failed run's parameters, a missing column)."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def text_of(value) -> str:
+    """A row's value as text ("" for none or NaN)."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    return str(value)

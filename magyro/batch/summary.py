@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from magyro.batch import row as schema
+from magyro.batch.row import number_of, text_of
 from magyro.batch.limits import CHECKS, Limits, describe, with_verdicts
 from magyro.io.atomic import write_atomically, write_text_atomically
 
@@ -88,19 +89,19 @@ def summary_rows(rows, limits: Limits | None) -> list[dict]:
         base.update({k: v for k, v in r.items() if k in base})
         full.append(base)
     judged = with_verdicts(full, limits)
-    judged.sort(key=lambda r: (_text(r["device_id"]), _text(r["session"])))
+    judged.sort(key=lambda r: (text_of(r["device_id"]), text_of(r["session"])))
     return [{c: _clean(c, r.get(c)) for c in SUMMARY_COLUMNS} for r in judged]
 
 
 def _clean(column: str, value):
     if column in TEXT_COLUMNS:
-        return _text(value)
+        return text_of(value)
     if column in INT_COLUMNS:
         try:
             return int(value)
         except (TypeError, ValueError, OverflowError):
             return -1
-    return _float(value)
+    return number_of(value)
 
 
 def write_parquet(table: list[dict], path: Path) -> None:
@@ -145,7 +146,7 @@ def outliers(rows, columns=None, threshold: float = 5.0, min_devices: int = 8) -
     calibrated = [r for r in rows if r.get("status") == "calibrated"]
     found = []
     for column in columns:
-        values = np.array([_float(r.get(column)) for r in calibrated])
+        values = np.array([number_of(r.get(column)) for r in calibrated])
         ok = np.isfinite(values)
         if ok.sum() < max(min_devices, 1):
             continue
@@ -160,7 +161,7 @@ def outliers(rows, columns=None, threshold: float = 5.0, min_devices: int = 8) -
         for r, value in zip((r for r, good in zip(calibrated, ok) if good), x):
             z = abs(value - median) / scale
             if z > threshold:
-                found.append({"device_id": _text(r.get("device_id")), "session": _text(r.get("session")),
+                found.append({"device_id": text_of(r.get("device_id")), "session": text_of(r.get("session")),
                               "column": column, "value": float(value), "median": median, "robust_z": float(z)})
     found.sort(key=lambda o: (-o["robust_z"], o["device_id"], o["column"]))
     return found
@@ -338,19 +339,6 @@ def _mpl_text(text) -> str:
 
 def _g(value: float) -> str:
     return f"{value:.4g}"
-
-
-def _float(value) -> float:
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return math.nan
-
-
-def _text(value) -> str:
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return ""
-    return str(value)
 
 
 CSS = """
