@@ -114,13 +114,26 @@ def solve(
 @app.command()
 def simulate(
     problem: str = typer.Argument(..., help="Problem file (TOML, describing a simulated scenario), or the name of one shipped in problems/ (e.g. paper-table1)."),
-    output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv); the truth goes beside it as NAME.truth.json. With --seeds: the folder to write the fleet in (created)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Session file to write (.parquet or .csv); the truth goes beside it as NAME.truth.json. With --seeds: the folder to write the fleet in (created)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Noise seed (default 0; the motion is fixed by the problem)."),
     seeds: Optional[str] = typer.Option(None, "--seeds", help="A fleet: one device per seed, e.g. 0-199, 3 or 1,5,9, each with its own sensor errors drawn from the problem's spread section; writes NAME-SEED.parquet, its truth and manifest.csv into the -o folder."),
+    stream: bool = typer.Option(False, "--stream", help="Write the recording to standard output as CSV lines (t,gx,gy,gz,,, and t,,,,mx,my,mz), paced in real time, for magyro watch -."),
+    speed: float = typer.Option(1.0, "--speed", help="With --stream: this many times faster than real time (0: as fast as possible)."),
 ):
-    """A simulated session and its true parameters from a problem file (or a fleet of devices with --seeds)."""
+    """A simulated session and its true parameters from a problem file (or a fleet of devices with --seeds, or a
+    live stream on standard output with --stream)."""
     from magyro.api import simulate_file, simulate_fleet_dir
     from magyro.errors import InputError
+
+    if stream:
+        from magyro.cli_live import simulate_stream
+
+        if output is not None or seeds is not None:
+            fail("--stream writes to standard output: leave out -o and --seeds", 2)
+        simulate_stream(problem, speed, seed)
+        return
+    if output is None:
+        fail("-o/--output is required (a session file, or a folder with --seeds), or --stream for standard output", 2)
 
     def action():
         if seeds is not None:
@@ -494,6 +507,13 @@ def report_command(
             typer.echo(f"report written to {output}")
 
     run_guarded(action, progress=False)   # its own lines
+
+
+from magyro.cli_live import watch_command  # noqa: E402  (its module uses this one's helpers)
+from magyro.cli_plan import plan_command  # noqa: E402
+
+app.command("watch")(watch_command)
+app.command("plan")(plan_command)
 
 
 def main():

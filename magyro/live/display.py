@@ -1,0 +1,172 @@
+"""What `magyro watch` shows: a live panel on stderr (rich), plain lines, and the `--status` JSON lines.
+
+- On a terminal (and without -q): a rich Live panel redrawn several times a second: the rank
+  against the noise floor, the field-direction coverage, a table of the predicted one-sigma of
+  each parameter group against its target, the instruction (the motion to make next) and ENOUGH
+  once every target is met. Without rich, the plain lines below.
+- Not a terminal, or -q: one plain line per second, or at once when the rank, the field
+  source or "enough" changes (-q: nothing but the final summary).
+- `StatusWriter`: every update as one JSON line (`Status.to_json_dict`: t_s, rank, coverage,
+  predicted std per group, enough, ...), flushed as written.
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+
+from magyro.live.monitor import GROUP_LABELS, GROUPS, Status
+
+PLAIN_EVERY_S = 1.0
+REFRESH_PER_SECOND = 8
+
+
+def fmt(v: float | None) -> str:
+    if v is None or not math.isfinite(v):
+        return "-"
+    return f"{v:.3g}"
+
+
+def predicted_text(status: Status) -> str:
+    p = status.predicted
+    if p is None:
+        return "predicting..." if status.predicting else "no prediction yet"
+    return " ".join(f"{g.split('_')[0]} {fmt(p[g])}/{fmt(status.targets[g])}" for g in GROUPS)
+
+
+def plain_line(status: Status, counts=None) -> str:
+    skipped = f", {counts.skipped} lines skipped" if counts is not None and counts.skipped else ""
+    head = (f"t {status.t_s:7.1f} s  rank {status.rank:2d}/12  coverage {100 * status.coverage:3.0f}%  "
+            f"std {predicted_text(status)}")
+    tail = "ENOUGH" if status.enough else status.instruction
+    return f"magyro watch: {head}  | {tail}{skipped}"
+
+
+class PlainDisplay:
+    """One line per second, or at once on a change of rank, field source or "enough"."""
+
+    def __init__(self, stream=None, every_s: float = PLAIN_EVERY_S, clock=time.monotonic):
+        self.stream = stream or sys.stderr
+        self.every_s = every_s
+        self.clock = clock
+        self._last = -math.inf
+        self._key = None
+
+    def show(self, status: Status, counts=None) -> None:
+        key = (status.rank, status.field_source, status.enough, status.predicted is None)
+        now = self.clock()
+        if key != self._key or now - self._last >= self.every_s:
+            print(plain_line(status, counts), file=self.stream, flush=True)
+            self._key, self._last = key, now
+
+    def close(self) -> None:
+        pass
+
+
+class QuietDisplay:
+    def show(self, status: Status, counts=None) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+class RichDisplay:
+    """A rich Live panel on stderr."""
+
+    def __init__(self, stream=None, source: str = ""):
+        from rich.console import Console
+        from rich.live import Live
+
+        self.source = source
+        self.console = Console(file=stream or sys.stderr)
+        self.live = Live(self._render(None, None), console=self.console, refresh_per_second=REFRESH_PER_SECOND,
+                         transient=False)
+        self.live.start()
+
+    def show(self, status: Status, counts=None) -> None:
+        self.live.update(self._render(status, counts))
+
+    def _render(self, status: Status | None, counts):
+        from rich.console import Group
+        from rich.panel import Panel
+        from rich.table import Table
+        from rich.text import Text
+
+        if status is None:
+            return Panel(Text("waiting for samples..."), title=f"magyro watch {self.source}")
+        head = Text()
+        head.append(f"{status.t_s:.1f} s   ", style="bold")
+        head.append(f"rank {status.rank}/12", style="bold green" if status.rank == 12 else "bold yellow")
+        head.append(f" above the noise floor ({status.noise_floor:.3g}, x10)   ")
+        head.append(f"coverage {100 * status.coverage:.0f}% ({status.cells_visited} cells)   ")
+        head.append(f"field: {status.field_source}", style="dim")
+        table = Table(box=None, pad_edge=False)
+        for col in ("parameter group", "predicted 1-sigma (max)", "target", ""):
+            table.add_column(col)
+        p = status.predicted
+        for g in GROUPS:
+            label, unit = GROUP_LABELS[g]
+            value = None if p is None else p[g]
+            ok = value is not None and value <= status.targets[g]
+            table.add_row(f"{label} ({unit})", fmt(value), fmt(status.targets[g]),
+                          Text("ok", style="green") if ok else Text("-" if value is None else "above",
+                                                                     style="dim" if value is None else "red"))
+        when = ""
+        if status.prediction is not None:
+            when = f"prediction of the first {status.prediction.t_s:.1f} s (magyro observe, {status.prediction.seconds:.2f} s)"
+        if status.predicting:
+            when += ("; " if when else "") + "predicting..."
+        parts = [head, table, Text(when, style="dim")]
+        if status.enough:
+            parts.append(Text(f"ENOUGH (since {status.enough_at_s:.1f} s): stop the recording (Ctrl-C)",
+                              style="bold white on green"))
+        else:
+            parts.append(Text("next: " + status.instruction, style="bold cyan"))
+            if status.detail:
+                parts.append(Text(status.detail, style="dim"))
+        if counts is not None:
+            extra = f"{counts.gyro} gyro, {counts.mag} magnetometer samples"
+            if counts.skipped:
+                extra += (f"; skipped {counts.header} header, {counts.bad} bad, {counts.out_of_order} out-of-order lines"
+                          + (f" (last bad: {counts.last_bad!r})" if counts.last_bad else ""))
+            parts.append(Text(extra, style="dim"))
+        return Panel(Group(*parts), title=f"magyro watch {self.source}")
+
+    def close(self) -> None:
+        self.live.stop()
+
+
+def make_display(quiet: bool, stream=None, source: str = ""):
+    """rich on a terminal, plain lines otherwise, nothing with -q."""
+    stream = stream or sys.stderr
+    if quiet:
+        return QuietDisplay()
+    if hasattr(stream, "isatty") and stream.isatty():
+        try:
+            return RichDisplay(stream, source)
+        except ImportError:
+            pass
+    return PlainDisplay(stream)
+
+
+class StatusWriter:
+    """Every update as one JSON line in a file (flushed as written)."""
+
+    def __init__(self, path):
+        self.f = open(path, "w", encoding="utf-8")
+
+    def write(self, status: Status) -> None:
+        self.f.write(json.dumps(status.to_json_dict(), allow_nan=False, default=_plain) + "\n")
+        self.f.flush()
+
+    def close(self) -> None:
+        self.f.close()
+
+
+def _plain(x):
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return str(x)

@@ -1,0 +1,265 @@
+"""Where `magyro watch` reads its lines from, and how a line becomes samples.
+
+A line is CSV, `t,gx,gy,gz,mx,my,mz`: time in seconds, the gyro (rad/s, or deg/s with
+`--gyro-unit deg/s`), the magnetometer in any unit. Sensors sampled apart may come on lines
+of their own, the other sensor's fields left empty: `t,gx,gy,gz,,,` and `t,,,,mx,my,mz`
+(`t,gx,gy,gz` alone is a gyro line too). A header line, a line that is not numbers, a
+sample with NaN/inf, or a sample whose time does not increase for its sensor is skipped and
+counted (`LineCounts`), never fatal.
+
+Sources (each an iterator of byte chunks, read by `LineReader` in a thread of its own so
+that the display keeps moving while the input waits):
+
+- standard input (`-`): until end of input;
+- a serial port (`/dev/tty*`, `COM*`, or any path with `--serial`), at `--baud`, with pyserial
+  (imported only then; missing, it is an InputError that says how to install it);
+- a file still being written: followed like `tail -f`; `magyro watch` stops once it has
+  not grown for `--idle` seconds.
+"""
+from __future__ import annotations
+
+import math
+import os
+import queue
+import re
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator
+
+from magyro.errors import InputError
+
+CHUNK_BYTES = 65536
+FOLLOW_POLL_S = 0.05
+SERIAL_TIMEOUT_S = 0.2
+DEFAULT_BAUD = 115200
+SERIAL_NAME = re.compile(r"^(/dev/tty|/dev/cu\.|/dev/serial/)|^COM\d+$", re.IGNORECASE)
+GYRO_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0}
+
+
+# --------------------------------------------------------------------------- lines to samples
+
+
+@dataclass
+class LineCounts:
+    """What the parser made of the lines so far (shown by the display)."""
+
+    lines: int = 0            # non-empty lines
+    gyro: int = 0             # gyro samples kept
+    mag: int = 0              # magnetometer samples kept
+    header: int = 0           # a first line that is not numbers
+    bad: int = 0              # lines that are not `t,gx,gy,gz,mx,my,mz` (or a half of it)
+    out_of_order: int = 0     # samples whose time does not increase for their sensor
+    last_bad: str = field(default="", repr=False)
+
+    @property
+    def skipped(self) -> int:
+        return self.header + self.bad + self.out_of_order
+
+    def to_dict(self) -> dict:
+        return {"lines": self.lines, "gyro": self.gyro, "mag": self.mag, "header": self.header, "bad": self.bad,
+                "out_of_order": self.out_of_order}
+
+
+class LineParser:
+    """Bytes in, (gyro rows, magnetometer rows) out; rows are (t, x, y, z) tuples, gyro in rad/s."""
+
+    def __init__(self, gyro_unit: str = "rad/s"):
+        if gyro_unit not in GYRO_UNITS:
+            raise InputError(f"--gyro-unit {gyro_unit!r}: give rad/s or deg/s")
+        self.gyro_scale = GYRO_UNITS[gyro_unit]
+        self.counts = LineCounts()
+        self._tail = b""
+        self._last_t = [-math.inf, -math.inf]
+
+    def feed(self, data: bytes) -> tuple[list, list]:
+        """Parse the complete lines in `data` (a partial last line waits for the rest)."""
+        data = self._tail + data
+        lines = data.split(b"\n")
+        self._tail = lines.pop()
+        return self.parse_lines(lines)
+
+    def finish(self) -> tuple[list, list]:
+        """The last line, when the input ended without a newline."""
+        tail, self._tail = self._tail, b""
+        return self.parse_lines([tail]) if tail.strip() else ([], [])
+
+    def parse_lines(self, lines) -> tuple[list, list]:
+        gyro, mag = [], []
+        c = self.counts
+        for raw in lines:
+            line = raw.strip()
+            if not line:
+                continue
+            c.lines += 1
+            parts = line.split(b",")
+            try:
+                values = [float(p) if p.strip() else None for p in parts]
+            except ValueError:
+                self._bad(line, header=c.lines == 1)
+                continue
+            if len(values) == 4:
+                values += [None, None, None]
+            if len(values) != 7 or values[0] is None:
+                self._bad(line)
+                continue
+            t = values[0]
+            g, m = values[1:4], values[4:7]
+            has_g, has_m = _complete(g), _complete(m)
+            if (not has_g and any(v is not None for v in g)) or (not has_m and any(v is not None for v in m)) \
+                    or not (has_g or has_m) or not all(math.isfinite(v) for v in values if v is not None):
+                self._bad(line)
+                continue
+            if has_g:
+                if t > self._last_t[0]:
+                    s = self.gyro_scale
+                    gyro.append((t, g[0] * s, g[1] * s, g[2] * s))
+                    self._last_t[0] = t
+                    c.gyro += 1
+                else:
+                    c.out_of_order += 1
+            if has_m:
+                if t > self._last_t[1]:
+                    mag.append((t, m[0], m[1], m[2]))
+                    self._last_t[1] = t
+                    c.mag += 1
+                else:
+                    c.out_of_order += 1
+        return gyro, mag
+
+    def _bad(self, line: bytes, header: bool = False) -> None:
+        if header:
+            self.counts.header += 1
+        else:
+            self.counts.bad += 1
+            self.counts.last_bad = line[:80].decode("utf-8", "replace")
+
+
+def _complete(xyz) -> bool:
+    return all(v is not None for v in xyz)
+
+
+# --------------------------------------------------------------------------- sources
+
+
+def stdin_chunks() -> Iterator[bytes]:
+    """Standard input, chunk by chunk as it arrives, until end of input."""
+    fd = sys.stdin.fileno()
+    while True:
+        data = os.read(fd, CHUNK_BYTES)
+        if not data:
+            return
+        yield data
+
+
+def follow_chunks(path: Path, poll_s: float = FOLLOW_POLL_S) -> Iterator[bytes]:
+    """A file from its start, then what is appended to it, like `tail -f` (never ends by itself:
+    the caller stops after its idle time). While the file does not grow it yields b"" every `poll_s`."""
+    with open(path, "rb") as f:
+        while True:
+            data = f.read(CHUNK_BYTES)
+            yield data
+            if not data:
+                time.sleep(poll_s)
+
+
+def serial_chunks(port: str, baud: int = DEFAULT_BAUD) -> Iterator[bytes]:
+    """A serial port's bytes as they arrive (pyserial)."""
+    ser = open_serial(port, baud)
+    try:
+        while True:
+            yield ser.read(max(1, ser.in_waiting))    # b"" after SERIAL_TIMEOUT_S without bytes: a heartbeat
+    finally:
+        ser.close()
+
+
+def open_serial(port: str, baud: int):
+    try:
+        import serial  # pyserial
+    except ImportError:
+        raise InputError(f"reading the serial port {port} needs pyserial, which is not installed: "
+                         "pip install pyserial") from None
+    try:
+        return serial.Serial(port, baudrate=baud, timeout=SERIAL_TIMEOUT_S)
+    except (serial.SerialException, OSError, ValueError) as exc:
+        raise InputError(f"cannot open the serial port {port} at {baud} baud: {exc}") from None
+
+
+def is_serial_name(source: str) -> bool:
+    return bool(SERIAL_NAME.search(source))
+
+
+@dataclass(frozen=True)
+class Source:
+    kind: str            # "stdin" | "serial" | "file"
+    name: str            # as the user gave it
+    baud: int = DEFAULT_BAUD
+
+    def chunks(self) -> Iterator[bytes]:
+        if self.kind == "stdin":
+            return stdin_chunks()
+        if self.kind == "serial":
+            return serial_chunks(self.name, self.baud)
+        return follow_chunks(Path(self.name))
+
+
+def resolve_source(source: str, serial: bool = False, baud: int = DEFAULT_BAUD) -> Source:
+    """`-` standard input; a serial device (by its name, or any path with `serial`); else a file to follow."""
+    if source == "-":
+        if serial:
+            raise InputError("--serial with SOURCE '-': give the serial device's path (e.g. /dev/ttyUSB0)")
+        return Source("stdin", "-")
+    if serial or is_serial_name(source):
+        return Source("serial", source, baud)
+    path = Path(source)
+    if not path.exists():
+        raise InputError(f"{source}: no such file (SOURCE is '-' for standard input, a serial device such as "
+                         "/dev/ttyUSB0 or COM3, or a file being written)")
+    if path.is_dir():
+        raise InputError(f"{source}: is a folder; give the file being written")
+    return Source("file", source)
+
+
+# --------------------------------------------------------------------------- the reader thread
+
+END = None   # what the queue carries after the last batch
+
+
+class LineReader:
+    """Reads a source in a daemon thread and puts (gyro rows, magnetometer rows) batches on `batches`;
+    after the input ends, END (None); an error in the source arrives as the exception itself."""
+
+    def __init__(self, chunks: Iterator[bytes], parser: LineParser):
+        self.chunks = chunks
+        self.parser = parser
+        self.batches: queue.Queue = queue.Queue()
+        self.stopped = threading.Event()
+        self.thread = threading.Thread(target=self._run, name="magyro-watch-reader", daemon=True)
+
+    def start(self) -> "LineReader":
+        self.thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Ask the thread to end (at its source's next chunk or heartbeat; a blocked standard input keeps it,
+        a daemon thread, until the process ends)."""
+        self.stopped.set()
+
+    def _run(self) -> None:
+        try:
+            for data in self.chunks:
+                if self.stopped.is_set():
+                    return
+                if not data:
+                    continue
+                gyro, mag = self.parser.feed(data)
+                if gyro or mag:
+                    self.batches.put((gyro, mag))
+            gyro, mag = self.parser.finish()
+            if gyro or mag:
+                self.batches.put((gyro, mag))
+            self.batches.put(END)
+        except BaseException as exc:  # noqa: BLE001 - handed to the main thread
+            self.batches.put(exc)
