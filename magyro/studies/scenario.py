@@ -8,7 +8,7 @@ the name of a shipped file and raises InputError with a plain message when it
 is unusable. Turning a problem into samples is `magyro.studies.simulate`.
 
 The motion (`Motion`) is drawn from its own ``motion.seed``, so every noise
-seed of a problem sees the same motion; `Scenario` also derives what the sensor
+seed of a problem sees the same motion (kind "turns" is a fixed list of `Turn`, nothing drawn); `Scenario` also derives what the sensor
 model needs from the file's numbers (C_b^m, K = C_b^m K_g, R, the field m^w).
 
 The optional ``[spread]`` section (`Spread`) is the one-sigma spread of the sensor
@@ -39,7 +39,7 @@ PROBLEMS_DIR = next(
     (d for d in (PACKAGE_DIR / "problems", PACKAGE_DIR.parent / "problems") if d.is_dir()),
     PACKAGE_DIR.parent / "problems",
 )
-MOTION_KINDS = ("euler", "sequential", "static")
+MOTION_KINDS = ("euler", "sequential", "static", "turns")
 AXES = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
 
 
@@ -50,7 +50,7 @@ AXES = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.
 class Motion:
     """The excitation: which body axes turn, how far, how fast, when."""
 
-    kind: str                          # "euler" | "sequential" | "static"
+    kind: str                          # "euler" | "sequential" | "static" | "turns"
     seed: int                          # motion seed (frequencies, phases, weights)
     axes: tuple[str, ...]              # body axes of the factors, in product order
     amplitude_deg: np.ndarray          # (len(axes),) bound on |angle| of each factor
@@ -60,6 +60,26 @@ class Motion:
     rest_end_s: float                  # still at the end
     ramp_s: float                      # C^2 ramp of the window (per slot for sequential)
     initial_euler_deg: np.ndarray      # C0 = C_b^w at rest, [roll, pitch, yaw]
+    turns: tuple["Turn", ...] = ()     # kind "turns" only: the turns and rests, in order
+
+
+@dataclass(frozen=True, eq=False)
+class Turn:
+    """One step of a "turns" motion: a turn by `angle_deg` about the unit body axis `axis` in `seconds`
+    (a minimum-jerk angle profile, `simulate.smoothstep`), or a rest of `seconds` (axis None, angle 0)."""
+
+    axis: np.ndarray | None            # (3,) unit, gyro frame; None for a rest
+    angle_deg: float                   # signed, right-hand rule about axis; 0 for a rest
+    seconds: float                     # duration of the step
+
+    @property
+    def is_rest(self) -> bool:
+        return self.axis is None
+
+    @property
+    def peak_rate_deg_s(self) -> float:
+        """The peak body rate of the turn: 15/8 of its mean rate (the smoothstep's peak slope)."""
+        return 0.0 if self.is_rest else 1.875 * abs(self.angle_deg) / self.seconds
 
 
 @dataclass(frozen=True)
@@ -172,10 +192,15 @@ _SCHEMA: dict[str, dict[str, bool]] = {  # section -> key -> required
     "motion": {
         "kind": True, "seed": False, "axes": False, "amplitude_deg": False, "band_hz": False,
         "components": False, "rest_start_s": False, "rest_end_s": False, "ramp_s": False,
-        "initial_euler_deg": False,
+        "initial_euler_deg": False, "turns": False,
     },
     "spread": {k: False for k in SPREAD_KEYS},
 }
+# informational sections: any keys, not read by the simulator (written by `magyro plan`); must be tables
+INFORMATIONAL_SECTIONS = ("plan",)
+# the [motion] keys that mean something for kind "turns" (the others are refused there, not silently ignored)
+TURNS_MOTION_KEYS = ("kind", "turns", "initial_euler_deg")
+TURN_KEYS = ("axis", "angle_deg", "seconds")
 
 
 def resolve_problem_path(path_or_name: str | os.PathLike) -> Path:
@@ -238,9 +263,13 @@ def parse_problem(raw: dict, source: str = "<dict>", default_name: str = "proble
 
 
 def _check_keys(raw: dict, source: str) -> None:
-    unknown = sorted(set(raw) - set(_SCHEMA))
+    unknown = sorted(set(raw) - set(_SCHEMA) - set(INFORMATIONAL_SECTIONS))
     if unknown:
-        raise InputError(f"{source}: unknown section(s) {unknown}; expected {sorted(_SCHEMA)}")
+        raise InputError(f"{source}: unknown section(s) {unknown}; expected {sorted(_SCHEMA)} "
+                         f"(and the informational {list(INFORMATIONAL_SECTIONS)})")
+    for section in INFORMATIONAL_SECTIONS:
+        if not isinstance(raw.get(section, {}), dict):
+            raise InputError(f"{source}: [{section}] must be a table")
     for section, keys in _SCHEMA.items():
         table = raw.get(section, {})
         if not isinstance(table, dict):
@@ -257,6 +286,10 @@ def _parse_motion(mo: dict, where: str) -> Motion:
     kind = _string(mo["kind"], where, "kind")
     if kind not in MOTION_KINDS:
         raise InputError(f"{where}: kind must be one of {list(MOTION_KINDS)}, got '{kind}'")
+    if kind == "turns":
+        return _parse_turns_motion(mo, where)
+    if "turns" in mo:
+        raise InputError(f"{where}: turns is for kind \"turns\" only (kind here is \"{kind}\")")
     default_axes = [] if kind == "static" else ["z", "y", "x"]
     axes = mo.get("axes", default_axes)
     if not isinstance(axes, list) or any(a not in AXES for a in axes):
@@ -289,6 +322,52 @@ def _parse_motion(mo: dict, where: str) -> Motion:
     )
 
 
+def _parse_turns_motion(mo: dict, where: str) -> Motion:
+    """kind = "turns": `turns` is a list of tables, each a turn {axis, angle_deg, seconds} or a rest {rest_s}."""
+    extra = sorted(set(mo) - set(TURNS_MOTION_KEYS))
+    if extra:
+        raise InputError(f"{where}: key(s) {extra} do not apply to kind \"turns\"; allowed: {list(TURNS_MOTION_KEYS)}")
+    if "turns" not in mo:
+        raise InputError(f"{where}: kind \"turns\" needs turns = [{{axis = [1, 0, 0], angle_deg = 180, "
+                         f"seconds = 2.0}}, {{rest_s = 1.0}}, ...]")
+    items = mo["turns"]
+    if not isinstance(items, list) or not items:
+        raise InputError(f"{where}: turns must be a non-empty list of tables, got {items!r}")
+    steps = [_parse_turn(item, f"{where} turns[{k}]") for k, item in enumerate(items)]
+    if all(step.is_rest for step in steps):
+        raise InputError(f"{where}: turns holds only rests; give at least one turn")
+    return Motion(
+        kind="turns", seed=0, axes=(), amplitude_deg=np.zeros(0), band_hz=(0.05, 0.5), components=1,
+        rest_start_s=0.0, rest_end_s=0.0, ramp_s=1.0,
+        initial_euler_deg=_vector3(mo.get("initial_euler_deg", [0.0, 0.0, 0.0]), where, "initial_euler_deg"),
+        turns=tuple(steps),
+    )
+
+
+def _parse_turn(item, where: str) -> Turn:
+    if not isinstance(item, dict):
+        raise InputError(f"{where}: must be a table {{axis, angle_deg, seconds}} or {{rest_s}}, got {item!r}")
+    if "rest_s" in item:
+        extra = sorted(set(item) - {"rest_s"})
+        if extra:
+            raise InputError(f"{where}: a rest has rest_s only, got also {extra}")
+        return Turn(None, 0.0, _positive(item["rest_s"], where, "rest_s"))
+    extra = sorted(set(item) - set(TURN_KEYS))
+    if extra:
+        raise InputError(f"{where}: unknown key(s) {extra}; a turn has {list(TURN_KEYS)}, a rest has ['rest_s']")
+    missing = [k for k in TURN_KEYS if k not in item]
+    if missing:
+        raise InputError(f"{where}: missing key(s) {missing}; a turn has {list(TURN_KEYS)}")
+    axis = _vector3(item["axis"], where, "axis")
+    norm = float(np.linalg.norm(axis))
+    if norm < 1e-9:
+        raise InputError(f"{where}: axis must be a non-zero vector (it is normalised), got {item['axis']!r}")
+    angle = _number(item["angle_deg"], where, "angle_deg")
+    if angle == 0.0:
+        raise InputError(f"{where}: angle_deg must not be 0 (use {{rest_s = ...}} for a rest)")
+    return Turn(axis / norm, angle, _positive(item["seconds"], where, "seconds"))
+
+
 def _parse_spread(sp: dict, where: str) -> Spread:
     values = {k: _non_negative(sp.get(k, 0.0), where, k) for k in SPREAD_KEYS}
     for key, limit in SPREAD_MAX_RELATIVE.items():
@@ -305,6 +384,17 @@ def _check_consistency(problem: Scenario, source: str) -> None:
     if abs(problem.mag_time_offset_s) >= problem.duration_s:
         raise InputError(f"{source} [magnetometer]: |time_offset_s| must be smaller than the duration")
     if m.kind == "static":
+        return
+    if m.kind == "turns":
+        total = sum(step.seconds for step in m.turns)
+        if total > problem.duration_s + 1e-9:
+            raise InputError(f"{source} [motion]: the turns and rests take {total:g} s, longer than duration_s = "
+                             f"{problem.duration_s:g} s (the time left after them is a rest)")
+        shortest = 10.0 / min(problem.gyro_rate_hz, problem.mag_rate_hz)
+        for k, step in enumerate(m.turns):
+            if not step.is_rest and step.seconds < shortest:
+                raise InputError(f"{source} [motion] turns[{k}]: seconds = {step.seconds:g} is shorter than 10 "
+                                 f"samples of the slower sensor ({shortest:g} s): the turn would not be resolved")
         return
     nyquist = 0.5 * min(problem.gyro_rate_hz, problem.mag_rate_hz)
     if m.band_hz[1] >= nyquist:

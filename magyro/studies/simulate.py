@@ -13,6 +13,15 @@ body rate is exact:
 
     w^b(t) = sum_j (prod_{l>j} Exp(a_l u_l))^T adot_j u_j.
 
+A "turns" motion (a list of turns and rests, `scenario.Turn`) is instead
+
+    C_b^w(t) = C0 Exp(theta_1 u_1) ... Exp(theta_{k-1} u_{k-1}) Exp(a_k(t) u_k)
+
+during step k (the completed turns, then the current partial one; a rest is the
+identity), with a_k(t) = theta_k s((t - start_k) / T_k), s the quintic smoothstep
+(the minimum-jerk profile of a hand movement: rate and acceleration continuous, zero
+at both ends of the turn), so w^b(t) = theta_k s'((t - start_k) / T_k) / T_k u_k.
+
 Frames: w = ENU world, b = gyro, m = magnetometer (equivalent) frame, i = the
 magnetometer frame at t = 0. C_m^w = C_b^w C_m^b, C_w^i = C_m^w(0)^T.
 
@@ -65,6 +74,8 @@ def motion_factors(problem: Scenario) -> list[Factor]:
     m = problem.motion
     if m.kind == "static":
         return []
+    if m.kind == "turns":
+        raise ValueError("a \"turns\" motion has no factors: see turn_steps")
     rng = np.random.default_rng(m.seed)
     t0, t1 = m.rest_start_s, problem.duration_s - m.rest_end_s
     n = len(m.axes)
@@ -118,9 +129,58 @@ def _factor_rotations(factors: list[Factor], t: np.ndarray):
     return out
 
 
+@dataclass(frozen=True, eq=False)
+class TurnSteps:
+    """A "turns" motion laid out in time: step j runs from start_s[j] for seconds[j], turning by angle_rad[j]
+    about axis[j] (a rest: angle 0), and before[j] is the product of the steps before it (identity for j = 0)."""
+
+    start_s: np.ndarray      # (n,)
+    seconds: np.ndarray      # (n,)
+    axis: np.ndarray         # (n, 3) unit (rests: zero)
+    angle_rad: np.ndarray    # (n,)
+    before: np.ndarray       # (n, 3, 3)
+
+
+def turn_steps(problem: Scenario) -> TurnSteps:
+    """The layout of the problem's "turns" motion: the steps back to back from t = 0."""
+    steps = problem.motion.turns
+    seconds = np.array([st.seconds for st in steps], dtype=float)
+    start = np.concatenate([[0.0], np.cumsum(seconds)[:-1]])
+    axis = np.array([np.zeros(3) if st.is_rest else np.asarray(st.axis, float) for st in steps])
+    angle = np.array([math.radians(st.angle_deg) for st in steps])
+    before = np.empty((len(steps), 3, 3))
+    P = np.eye(3)
+    for j in range(len(steps)):
+        before[j] = P
+        P = P @ so3.exp_so3(angle[j] * axis[j])
+    return TurnSteps(start, seconds, axis, angle, before)
+
+
+def _turn_angles(problem: Scenario, t: np.ndarray):
+    """Per time: the step index, its angle a(t) and rate adot(t) (clamped: 0 before, the full angle after)."""
+    st = turn_steps(problem)
+    j = np.clip(np.searchsorted(st.start_s, t, side="right") - 1, 0, len(st.start_s) - 1)
+    s, ds = smoothstep((t - st.start_s[j]) / st.seconds[j])
+    return st, j, st.angle_rad[j] * s, st.angle_rad[j] * ds / st.seconds[j]
+
+
+def turns_body_attitude(problem: Scenario, t: np.ndarray) -> np.ndarray:
+    """C_b^w(t) of a "turns" motion: C0, the completed turns, the current partial one."""
+    st, j, a, _ = _turn_angles(problem, t)
+    return problem.C0 @ st.before[j] @ so3.exp_so3(a[:, None] * st.axis[j])
+
+
+def turns_body_rate(problem: Scenario, t: np.ndarray) -> np.ndarray:
+    """w^b(t) of a "turns" motion: adot(t) u of the current step (0 in rests, before and after)."""
+    st, j, _, adot = _turn_angles(problem, t)
+    return adot[:, None] * st.axis[j]
+
+
 def truth_body_attitude(problem: Scenario, t_s) -> np.ndarray:
     """C_b^w(t) = C0 prod_j Exp(a_j(t) u_j), shape (N, 3, 3)."""
     t = np.atleast_1d(np.asarray(t_s, dtype=float))
+    if problem.motion.kind == "turns":
+        return turns_body_attitude(problem, t)
     C = np.broadcast_to(problem.C0, (len(t), 3, 3)).copy()
     for E, _ in _factor_rotations(motion_factors(problem), t):
         C = C @ E
@@ -130,6 +190,8 @@ def truth_body_attitude(problem: Scenario, t_s) -> np.ndarray:
 def truth_body_rate(problem: Scenario, t_s) -> np.ndarray:
     """w_ib^b(t) in rad/s, gyro frame, (N, 3): sum_j (prod_{l>j} Exp(a_l u_l))^T adot_j u_j."""
     t = np.atleast_1d(np.asarray(t_s, dtype=float))
+    if problem.motion.kind == "turns":
+        return turns_body_rate(problem, t)
     w = np.zeros((len(t), 3))
     P = np.broadcast_to(np.eye(3), (len(t), 3, 3))
     for E, rate in reversed(_factor_rotations(motion_factors(problem), t)):
