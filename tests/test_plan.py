@@ -239,3 +239,15 @@ def test_plan_command_bad_input_exits_2_with_one_message(plan_app, args, needle)
     assert result.exit_code == 2, result.output
     lines = [line for line in result.output.splitlines() if line.strip()]
     assert len(lines) == 1 and lines[0].startswith("magyro: ") and needle in lines[0], result.output
+
+
+def test_the_start_pose_is_an_instruction():
+    """The plan holds only for the start pose it was made for: the table says how to hold the device."""
+    from magyro import so3
+    from magyro.studies.plan import start_pose_instruction
+
+    assert start_pose_instruction(so3.euler_to_dcm([0, 0, 0])).endswith("+z axis pointing up and its +y axis toward "
+                                                                         "magnetic north")
+    assert "+y axis pointing up and its -z axis toward magnetic north" in start_pose_instruction(so3.euler_to_dcm([90, 0, 0]))
+    assert "+x axis toward magnetic north" in start_pose_instruction(so3.euler_to_dcm([0, 0, 90]))
+    assert "41 deg from north" in start_pose_instruction(so3.euler_to_dcm([5, -10, 40]))

@@ -171,6 +171,23 @@ def axis_label(axis: np.ndarray) -> str:
     return "[" + ", ".join(f"{v:.3f}" for v in a) + "]"
 
 
+def start_pose_instruction(C0: np.ndarray) -> str:
+    """Where to hold the device before the first turn, from C0 = C_b^w (body to ENU): the device axes nearest
+    to up and to magnetic north (the field's horizontal part points north), with how far off they are."""
+    C0 = np.asarray(C0, float)
+    up = int(np.argmax(np.abs(C0[2])))
+    rest = [i for i in range(3) if i != up]
+    north = rest[int(np.argmax(np.abs(C0[1, rest])))]
+    label = lambda i, sign: ("+" if sign > 0 else "-") + "xyz"[i]   # noqa: E731
+    up_label, north_label = label(up, C0[2, up]), label(north, C0[1, north])
+    off_up = np.degrees(np.arccos(min(1.0, abs(C0[2, up]))))
+    off_north = np.degrees(np.arccos(min(1.0, abs(C0[1, north]) / max(np.hypot(C0[0, north], C0[1, north]), 1e-12))))
+    text = f"start with the device's {up_label} axis pointing up and its {north_label} axis toward magnetic north"
+    if off_up > 1 or off_north > 1:
+        text += f" (the plan's pose is {off_up:.0f} deg from up and {off_north:.0f} deg from north there)"
+    return text
+
+
 def instructions(turns: tuple[Turn, ...]) -> list[str]:
     """The turns as instructions to a person, one line per step."""
     lines = []
@@ -314,6 +331,8 @@ class Plan:
                  "The motion (each turn about the device's own axis, wherever the previous turns left it; "
                  "right-hand rule: thumb along the axis, fingers curl the way to turn; start slowly, be "
                  "fastest half way, stop smoothly):"]
+        lines.append(f"  0. {start_pose_instruction(self.base.C0)}: the turns are chosen for where the field "
+                     "lies in the device, so this start pose matters")
         lines += instructions(self.turns)
         lines += ["", f"Predicted one-sigma (Cramer-Rao bound, the information the solve uses) against the "
                       f"paper's motion ({self.reference.how}):"]
