@@ -1,5 +1,5 @@
 """Issue 15's batch benchmark: a fleet of 100 s sessions, 5 % of them hostile, on 1 and 2 workers of the local
-pool and of a Dask cluster on localhost; prints one table.
+pool and of a Dask cluster on localhost (`dask scheduler` and `dask worker` processes); prints one table.
 
     python benchmarks/bench_batch.py                    # 200 sessions (about 15 minutes on 2 cores)
     python benchmarks/bench_batch.py --sessions 40      # a quicker look
@@ -25,9 +25,11 @@ bit for bit equal between --jobs 2 and the two-worker Dask cluster.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -88,6 +90,29 @@ def make_fleet(folder: Path, sessions: int) -> tuple[list[str], dict[str, int]]:
         lines.append(f"{name},{file.name}")
     (folder / "fleet.csv").write_text("\n".join(lines) + "\n")
     return [str(folder / "fleet.csv")], {n: hostile[n] for n in names}
+
+
+@contextlib.contextmanager
+def dask_cluster(workers: int, port: int = 8799):
+    """A Dask cluster as a user starts one: `dask scheduler` and `dask worker --nthreads 1` processes (the
+    scheduler out of the client's process, as on a real cluster); yields its address."""
+    from distributed import Client
+
+    address = f"tcp://127.0.0.1:{port}"
+    dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    scheduler = subprocess.Popen(dask + ["--host", "127.0.0.1", "--port", str(port), "--no-dashboard"], **quiet)
+    worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
+                               "--nworkers", str(workers), "--no-dashboard"], **quiet)
+    try:
+        with Client(address, timeout="30s") as client:
+            client.wait_for_workers(workers, timeout=60)
+        yield address
+    finally:
+        for process in (worker, scheduler):
+            process.terminate()
+        for process in (worker, scheduler):
+            process.wait(timeout=30)
 
 
 def dispatch_ms(executor, n: int = 200) -> float:
@@ -156,14 +181,10 @@ def main() -> None:
         dispatch = {("in process", 1): 0.0, ("local pool", 1): dispatch_ms(LocalPool(1)),
                     ("local pool", 2): dispatch_ms(LocalPool(2))}
         if not args.skip_dask:
-            from distributed import LocalCluster
-
             for workers in (1, 2):
-                with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                                  silence_logs=40) as cluster:
-                    runs[("dask", workers)] = one_run(inputs, tmp / f"dask{workers}", expected,
-                                                      scheduler=cluster.scheduler_address)
-                    dispatch[("dask", workers)] = dispatch_ms(DaskCluster(cluster.scheduler_address))
+                with dask_cluster(workers) as address:
+                    runs[("dask", workers)] = one_run(inputs, tmp / f"dask{workers}", expected, scheduler=address)
+                    dispatch[("dask", workers)] = dispatch_ms(DaskCluster(address))
 
         print("\n| executor | workers | wall_s | devices_per_s | speedup | overhead_ms | dispatch_ms | client_heap_MB "
               "| good | broken |")

@@ -17,12 +17,9 @@ from pathlib import Path
 
 from magyro.batch.row import AXES, EULER, PAIRS, number_of, text_of
 from magyro.errors import InputError
+from magyro.io.toml_file import read_toml
 from magyro.front.findings import KINDS
 
-try:  # Python >= 3.11
-    import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as tomllib  # type: ignore[no-redef]
 
 # the recording check's finding kinds and the calibration's other warning kinds (magyro.batch.row.warning_kind);
 # "any" in reject_warnings rejects every warning
@@ -79,12 +76,7 @@ def load_limits(path) -> Limits:
         raise InputError(f"limits file {path} not found (no such file)")
     if path.is_dir():
         raise InputError(f"limits file {path} is a folder; give the path of a TOML file")
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"limits file {path}: not valid TOML ({' '.join(str(exc).split())})") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"limits file {path}: cannot read ({' '.join(str(exc).split())})") from None
+    raw = read_toml(path, f"limits file {path}")
     return parse_limits(raw, source=f"limits file {path}")
 
 

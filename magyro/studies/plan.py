@@ -465,9 +465,10 @@ def std_ratio_interval(cov: np.ndarray, runs: int, level: float = 0.99, draws: i
 
 def _check_round_trip(text: str, plan: "Plan") -> None:
     """The written problem must read back as the plan's motion (a guard on the hand-made TOML)."""
-    from magyro.studies.scenario import parse_problem, tomllib
+    from magyro.io.toml_file import parse_toml
+    from magyro.studies.scenario import parse_problem
 
-    back = parse_problem(tomllib.loads(text), source=plan.name)
+    back = parse_problem(parse_toml(text), source=plan.name)
     assert len(back.motion.turns) == len(plan.turns)
     for a, b in zip(back.motion.turns, plan.turns):
         assert a.is_rest == b.is_rest and a.seconds == b.seconds and a.angle_deg == b.angle_deg

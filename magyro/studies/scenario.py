@@ -26,11 +26,8 @@ import numpy as np
 
 from magyro import so3
 from magyro.errors import InputError
+from magyro.io.toml_file import read_toml
 
-try:  # Python >= 3.11
-    import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as tomllib  # type: ignore[no-redef]
 
 # the problems shipped with magyro: installed as package data (magyro/problems), or the
 # top-level problems/ of a source checkout
@@ -221,12 +218,7 @@ def resolve_problem_path(path_or_name: str | os.PathLike) -> Path:
 def load_problem(path_or_name: str | os.PathLike) -> Scenario:
     """Read and check a problem TOML; raise InputError with a plain message if unusable."""
     path = resolve_problem_path(path_or_name)
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML ({exc})") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read ({exc})") from None
+    raw = read_toml(path)
     return parse_problem(raw, source=str(path), default_name=path.stem)
 
 
