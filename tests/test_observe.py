@@ -5,7 +5,6 @@ two axes 9, three axes 12. Every canonical problem is observed once (seed 0) and
 """
 from __future__ import annotations
 
-import importlib.util
 import json
 import sys
 from pathlib import Path
@@ -22,15 +21,8 @@ from magyro.observability.report import SCHEMA, SPHERE_BANDS, SPHERE_SECTORS
 from magyro.studies.scenario import load_problem
 from magyro.studies.simulate import motion_factors, simulate
 
-DOCS = Path(__file__).resolve().parent.parent / "docs"
-
-
-def load_script(path: Path):
-    """A script of the repository (not part of the package) as a module."""
-    spec = importlib.util.spec_from_file_location(path.stem, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from scripts import DOCS, load_script  # noqa: E402
 
 
 table_script = load_script(DOCS / "make_observability_table.py")

@@ -5,21 +5,15 @@ BROAD trial and nine degraded copies through the recording check) and shared.
 """
 from __future__ import annotations
 
-import importlib.util
+import sys
+
 from pathlib import Path
 
 import pytest
 
-DOCS = Path(__file__).resolve().parent.parent / "docs"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from scripts import DOCS, load_script  # noqa: E402
 PAGE = DOCS / "recording.md"
-
-
-def load_script(path: Path):
-    """A script of the repository (not part of the package) as a module."""
-    spec = importlib.util.spec_from_file_location(path.stem, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 numbers = load_script(DOCS / "make_recording_numbers.py")
