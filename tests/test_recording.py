@@ -399,3 +399,14 @@ def test_a_session_with_almost_no_samples_is_an_error_not_a_crash(b02):
     assert kinds(check, "error") == [("samples", "both")] and not check.usable
     repaired, again = repair_recording(b02.within(40.0, 40.02))
     assert len(repaired.t_gyro_s) == 6 and not again.usable
+
+
+def test_a_finding_of_an_unknown_kind_is_refused_when_read_back():
+    """A recording check written by another magyro, with a finding kind this one does not know, is refused with
+    the kind named (exit 2), not read half-understood."""
+    from magyro.errors import InputError
+    from magyro.front.findings import RecordingCheck
+
+    finding = {"kind": "martian", "sensor": "gyro", "severity": "warning", "message": "?", "where_s": []}
+    with pytest.raises(InputError, match="unknown finding kind 'martian'"):
+        RecordingCheck.from_dict({"findings": [finding]})

@@ -115,7 +115,11 @@ class RecordingCheck:
         def spans(x):
             return tuple(tuple(float(v) for v in s) for s in x)
 
-        findings = tuple(Finding(**{**f, "where_s": spans(f.get("where_s", ()))}) for f in data.get("findings", ()))
+        try:
+            findings = tuple(Finding(**{**f, "where_s": spans(f.get("where_s", ()))}) for f in data.get("findings", ()))
+        except (TypeError, ValueError) as exc:   # a key or a kind this magyro does not know: refused, not guessed
+            from magyro.errors import InputError
+            raise InputError(f"the recording check's findings hold what this magyro does not know ({exc})") from None
         sensors = {k: SensorStats(**v) for k, v in data.get("sensors", {}).items()}
         return cls(findings, sensors, spans(data.get("gyro_holes_s", ())), tuple(data.get("lag_s", ())),
                    dict(data.get("repairs", {})), str(data.get("source", "")), tuple(data.get("lag_at_s", ())))
