@@ -15,7 +15,8 @@ chooses:
 Compiled kernels: a worker loads the solver's kernels from the kernel cache
 (`magyro.nls.kernels.cache_dir()`), once per process, and compiles a missing one once
 per machine (the cache is written atomically, so workers never see half a library).
-Dask workers on other machines get the client's cached kernels once, when they join
+`check()` refuses, before any work, an executor that cannot run (no dask.distributed, nothing
+listening at the scheduler's address). Dask workers on other machines get the client's cached kernels once, when they join
 (`magyro.dask_worker.MagyroWorker`, a worker plugin, which also undoes the nanny's malloc
 setting that made solves 1.7x slower), not with every task.
 
@@ -69,6 +70,9 @@ class InProcess:
     name = "in-process"
     workers = 1
 
+    def check(self) -> None:
+        return None
+
     def __enter__(self):
         return self
 
@@ -97,6 +101,9 @@ class LocalPool:
     """A pool of `workers` spawned processes, each with one BLAS/OpenMP thread."""
 
     name = "local pool"
+
+    def check(self) -> None:
+        return None
 
     def __init__(self, workers: int, start_method: str = DEFAULT_START_METHOD):
         self.workers = workers
@@ -163,17 +170,30 @@ class DaskCluster:
         self.client = None
         self.workers = 0
 
-    def __enter__(self):
+    def check(self) -> None:
+        """InputError, before any work, when dask.distributed is missing or nothing listens at the address."""
         try:
-            from distributed import Client
+            import distributed  # noqa: F401
         except ImportError:
             raise InputError("--scheduler needs dask.distributed: pip install 'magyro[dask]'") from None
         try:
+            refuse_unreachable(self.address)   # at once, rather than after the Dask client's whole timeout
+        except OSError as exc:
+            raise self.unreachable(exc) from None
+
+    def unreachable(self, exc: BaseException) -> InputError:
+        return InputError(f"no Dask scheduler answers at {self.address} ({type(exc).__name__}: {exc}); start one "
+                          "with `dask scheduler` and workers with `dask worker ADDRESS --nthreads 1`, or leave "
+                          f"--scheduler and {SCHEDULER_VARIABLE} unset for the local pool")
+
+    def __enter__(self):
+        self.check()
+        from distributed import Client
+
+        try:
             self.client = Client(self.address, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError) as exc:
-            raise InputError(f"no Dask scheduler answers at {self.address} ({type(exc).__name__}: {exc}); start one "
-                             "with `dask scheduler` and workers with `dask worker ADDRESS --nthreads 1`, or leave "
-                             f"--scheduler and {SCHEDULER_VARIABLE} unset for the local pool") from None
+            raise self.unreachable(exc) from None
         from magyro.dask_worker import MagyroWorker
 
         self.client.register_plugin(MagyroWorker.from_local_cache(), name=MagyroWorker.name)
@@ -198,6 +218,18 @@ class DaskCluster:
 
     def describe(self) -> str:
         return f"the Dask cluster at {self.address} ({self.workers} worker threads)"
+
+
+def refuse_unreachable(address: str) -> None:
+    """OSError at once when nothing listens at a tcp://HOST:PORT address (a refused connection); other
+    addresses (tls://, a name Dask resolves itself) are left to the Dask client."""
+    import socket
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    if parts.scheme != "tcp" or parts.hostname is None or parts.port is None:
+        return
+    socket.create_connection((parts.hostname, parts.port), timeout=5).close()
 
 
 # --------------------------------------------------------------------------- running many tasks

@@ -62,6 +62,13 @@ def test_no_scheduler_is_one_clear_message(tmp_path):
                         "tcp://127.0.0.1:9"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "no Dask scheduler answers at tcp://127.0.0.1:9" in r.stderr, r.stderr
     assert "Traceback" not in r.stderr
+    sessions = tmp_path / "sessions"
+    sessions.mkdir()
+    (sessions / "a.parquet").write_bytes(b"never read")
+    r = subprocess.run([sys.executable, "-m", "magyro", "batch", str(sessions), "-o", str(tmp_path / "out"),
+                        "--scheduler", "127.0.0.1:9"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "no Dask scheduler answers at 127.0.0.1:9" in r.stderr, r.stderr
+    assert not (tmp_path / "out").exists()   # refused before any output was made
 
 
 def test_batch_on_dask_equals_the_local_pool_bit_for_bit(cluster, fleet, tmp_path):

@@ -82,6 +82,8 @@ def run_batch(inputs: list, outdir, options: Options | None = None, *, method: s
     t0 = time.perf_counter()
     options = options or Options()
     devices = devices_from_inputs([str(i) for i in inputs])
+    executor = executor or executor_for(jobs, scheduler)
+    executor.check()   # before any output is made
     out = prepare_outdir(outdir, devices, reports)
     digest = options_digest(options, method, knobs or {}, gyro_unit, mag_unit, reports)
     tasks, rows, reused = [], {}, 0
@@ -107,7 +109,6 @@ def run_batch(inputs: list, outdir, options: Options | None = None, *, method: s
         if progress is not None:
             progress(len(rows), len(devices), row)
 
-    executor = executor or executor_for(jobs, scheduler)
     with executor:
         run_unordered(executor, calibrate_device, tasks, done, arguments=lambda item: (item[0],), warm_first=True)
     ordered = with_verdicts([rows[d.device_id] for d in devices], limits)
