@@ -34,31 +34,37 @@ def check_outputs(inputs: Iterable, outputs: Iterable) -> None:
     two outputs are the same file, or when an output cannot be written (a folder, not a
     regular file, its folder missing or not writable).
     """
-    ins = [Path(p) for p in inputs if isinstance(p, (str, os.PathLike)) and os.path.exists(p)]
-    outs = [Path(p) for p in outputs if isinstance(p, (str, os.PathLike))]
-    checked: list[Path] = []
-    for out in outs:
-        for inp in ins:
-            if same_file(out, inp):
-                raise InputError(
-                    f"the output {out} is the input {inp} (the same file); writing it would destroy the "
-                    f"input, which magyro never changes: choose another output path")
-        for other in checked:
-            if same_file(out, other):
-                raise InputError(
-                    f"two outputs are the same file: {other} and {out}; give each output its own path")
+    ins: dict = {}
+    for p in inputs:
+        if isinstance(p, (str, os.PathLike)) and os.path.exists(p):
+            ins.update(dict.fromkeys(file_identities(Path(p)), Path(p)))
+    checked: dict = {}
+    for out in (Path(p) for p in outputs if isinstance(p, (str, os.PathLike))):   # linear: a fleet writes thousands
+        keys = file_identities(out)
+        inp = next((ins[k] for k in keys if k in ins), None)
+        if inp is not None:
+            raise InputError(
+                f"the output {out} is the input {inp} (the same file); writing it would destroy the "
+                f"input, which magyro never changes: choose another output path")
+        other = next((checked[k] for k in keys if k in checked), None)
+        if other is not None:
+            raise InputError(
+                f"two outputs are the same file: {other} and {out}; give each output its own path")
         check_writable(out)
-        checked.append(out)
+        checked.update(dict.fromkeys(keys, out))
 
 
-def same_file(a: Path, b: Path) -> bool:
-    """True when `a` and `b` name the same file: `os.path.samefile` when both exist, else the resolved paths."""
+def file_identities(p: Path) -> tuple:
+    """What names one file, for lookups: its resolved path, and its device and inode when it exists (a symlink
+    or a hard link is the file it points to). Two paths name the same file exactly when they share one."""
+    keys = (("path", _resolved(p)),)
     try:
-        if os.path.exists(a) and os.path.exists(b):
-            return os.path.samefile(a, b)
+        if os.path.exists(p):
+            st = os.stat(p)
+            keys += (("inode", st.st_dev, st.st_ino),)
     except OSError:
         pass
-    return _resolved(a) == _resolved(b)
+    return keys
 
 
 def _resolved(p: Path) -> Path:

@@ -150,23 +150,6 @@ def fleet_paths(problem: Scenario, seeds: Iterable[int], outdir) -> list[tuple[i
     return out
 
 
-def check_fleet_outputs(problem_path, paths: list[Path]) -> None:
-    """`check_outputs` for a fleet, linear in its size: the folder writable, no output the problem file, no
-    output a folder or a special file. (The names differ by construction: one seed, one name.)"""
-    from magyro.io import check_outputs
-    from magyro.io.atomic import same_file
-
-    check_outputs([problem_path], paths[:3])   # the folder writable, the first names free
-    problem_path = Path(problem_path) if isinstance(problem_path, (str, os.PathLike)) else None
-    problem_exists = problem_path is not None and problem_path.exists()
-    for path in paths[3:]:
-        if path.exists() and not path.is_file():
-            raise InputError(f"cannot write the output {path}: it exists and is not a regular file; "
-                             "choose another folder")
-        if problem_exists and same_file(path, problem_path):
-            raise InputError(f"the output {path} is the input {problem_path} (the same file); choose another folder")
-
-
 def simulate_fleet(problem: Scenario | str | os.PathLike, seeds: Iterable[int], outdir,
                    progress: Callable[[int, int, Path], None] | None = None) -> list[Path]:
     """Per seed, the session of device `seed` (its errors from [spread], its noise from the seed) written to
@@ -176,7 +159,7 @@ def simulate_fleet(problem: Scenario | str | os.PathLike, seeds: Iterable[int], 
 
     `progress(done, total, session_path)` is called after each device. Returns the session paths.
     """
-    from magyro.io import write_session, write_text_atomically
+    from magyro.io import check_outputs, write_session, write_text_atomically
     from magyro.studies.simulate import simulate, write_truth
 
     if not isinstance(problem, Scenario):
@@ -188,7 +171,7 @@ def simulate_fleet(problem: Scenario | str | os.PathLike, seeds: Iterable[int], 
     outdir = Path(outdir)
     devices = fleet_paths(problem, seeds, outdir)
     manifest = outdir / MANIFEST
-    check_fleet_outputs(problem_path, [manifest] + [p for _, s, t in devices for p in (s, t)])
+    check_outputs([problem_path], [manifest] + [p for _, s, t in devices for p in (s, t)])
     written = []
     for done, (seed, session_path, truth_path) in enumerate(devices, start=1):
         device = device_scenario(problem, seed)
