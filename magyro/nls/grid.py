@@ -1,13 +1,14 @@
 """Where the attitude nodes, the gyro sub-steps and the magnetometer samples sit: numbers only, no CasADi.
 
-Nodes sit on every `stride`-th segment boundary; segments run from one
-magnetometer sample to the next, and a gap in the magnetometer record is cut,
-at gyro times, into segments of typical length that carry no magnetometer
-residual, so that a gap compiles no new kernel shape. An interval that overlaps a
-hole in the gyro record (no gyro data) is not integrated across: inside the hole the
-rate is taken as unknown (zero, and the link loose: `gyro_linked`), so the attitude after
-it starts a new segment; in such an interval only the sample on its first node
-carries a residual: no gyro says where the device turned between the others.
+Segments run from one boundary to the next, and a boundary sits at every magnetometer sample and at every
+gyro time, so a segment is one sub-step whatever the two sensors' rates and clocks; a segment that starts
+at no magnetometer sample (the gyro is faster, or a gap in the magnetometer record) carries no
+magnetometer residual. Nodes sit on every `stride`-th boundary. The kernels' shape is then the stride
+alone: one solve compiles what another rate, a gap or a second session needs. An interval that overlaps a
+hole in the gyro record (no gyro data) is not integrated across: inside the hole the rate is taken as
+unknown (zero, and the link loose: `gyro_linked`), so the attitude after it starts a new segment; in such
+an interval only the sample on its first node carries a residual: no gyro says where the device turned
+between the others.
 """
 from __future__ import annotations
 
@@ -21,12 +22,10 @@ from magyro.session import hole_spans_s, overlaps_a_hole
 class Grid:
     """Where nodes, sub-steps and magnetometer samples sit; numbers only.
 
-    Interval n (node n to n+1) holds `stride` segments, each from one
-    magnetometer sample to the next, each cut into at most `substeps`
-    sub-steps (padded with zero length). A gap in the magnetometer record is
-    bridged by segments about one typical interval long that start at no
-    sample (weight 0), so one gap does not pad every interval of the session
-    to its length.
+    Interval n (node n to n+1) holds `stride` segments, each cut into at
+    most `substeps` sub-steps (padded with zero length; one, with the
+    boundaries of `segment_starts`). A segment that starts at no
+    magnetometer sample has weight 0.
     """
 
     t_node_s: np.ndarray         # (N,)
@@ -37,6 +36,7 @@ class Grid:
     last_mag_index: int          # magnetometer sample at the last node
     mag_weight: np.ndarray       # (N-1, stride) 1 where a segment starts at a sample, 0 in a gap
     gyro_linked: np.ndarray      # (N-1,) False where the interval overlaps a hole in the gyro record
+    last_on_sample: bool = True  # whether the last node sits on a magnetometer sample
 
     @property
     def nodes(self) -> int:
@@ -61,8 +61,8 @@ class Grid:
 
     @property
     def node_on_sample(self) -> np.ndarray:
-        """True for the nodes that sit on a magnetometer sample (the last node always does)."""
-        return np.append(self.mag_weight[:, 0] > 0, True)
+        """True for the nodes that sit on a magnetometer sample."""
+        return np.append(self.mag_weight[:, 0] > 0, self.last_on_sample)
 
     @property
     def sample_mask(self) -> np.ndarray:
@@ -70,28 +70,29 @@ class Grid:
         return self.mag_weight.reshape(-1) > 0
 
 
-MAX_SEGMENT_FACTOR = 1.5  # segments longer than this many typical magnetometer intervals are cut
+STRIDES = (4, 12, 40)     # the strides magyro picks from (solve.default_stride): each one set of kernels
+MAX_SEGMENT_FACTOR = 1.5  # segments longer than this many typical segments (a hole in both records) are cut
 
 
 def segment_starts(t_mag_s: np.ndarray, used: np.ndarray, t_gyro_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(times, magnetometer index, on-a-sample flag) of every segment boundary.
 
-    The used samples' times, plus boundaries inside each gap longer than
-    MAX_SEGMENT_FACTOR typical intervals, about one typical interval apart and
-    placed on gyro times (so they add no sub-step, and the kernels keep the
-    gap-free session's shape); those carry the index of the sample before the
-    gap and the flag False.
+    A boundary at every used magnetometer sample and at every gyro time between the first and the last, so a
+    segment is one sub-step whatever the two rates, and the kernels' shape does not depend on them; where
+    neither sensor has data for longer than MAX_SEGMENT_FACTOR typical segments, boundaries about one typical
+    segment apart. A boundary that is no magnetometer sample carries the index of the sample before it and
+    the flag False (its segment has no magnetometer residual).
     """
     t = t_mag_s[used]
-    dt = np.diff(t)
+    inside = t_gyro_s[(t_gyro_s > t[0]) & (t_gyro_s < t[-1])] if len(t) else t_gyro_s[:0]
+    times = np.union1d(t, inside)
+    dt = np.diff(times)
     typical = float(np.median(dt)) if len(dt) else 0.0
     long = np.flatnonzero(dt > MAX_SEGMENT_FACTOR * typical) if typical > 0 else np.array([], dtype=int)
-    extra_t, extra_i = bridge_points(t, dt, long, typical, t_gyro_s)
-    times = np.concatenate([t, extra_t])
-    index = np.concatenate([used, used[extra_i]])
-    on_sample = np.concatenate([np.ones(len(t), dtype=bool), np.zeros(len(extra_t), dtype=bool)])
-    order = np.argsort(times, kind="stable")
-    return times[order], index[order], on_sample[order]
+    extra_t, _ = bridge_points(times, dt, long, typical, t_gyro_s)
+    times = np.union1d(times, extra_t)
+    before = np.searchsorted(t, times, side="right") - 1
+    return times, used[before], t[before] == times
 
 def bridge_points(t: np.ndarray, dt: np.ndarray, long: np.ndarray, typical: float,
                   t_gyro_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -113,7 +114,8 @@ def bridge_points(t: np.ndarray, dt: np.ndarray, long: np.ndarray, typical: floa
 
 
 def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
-    """Nodes on every `stride`-th segment boundary (magnetometer samples, gaps cut) inside the gyro's span."""
+    """Nodes on every `stride`-th segment boundary (`segment_starts`: magnetometer samples and gyro times)
+    inside the gyro's span."""
     usable = np.flatnonzero((t_mag_s >= t_gyro_s[0]) & (t_mag_s <= t_gyro_s[-1]))
     holes = hole_spans_s(t_gyro_s)
     t_bound, idx_bound, on_sample = segment_starts(t_mag_s, usable, t_gyro_s)
@@ -139,7 +141,8 @@ def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
     t_node = t_seg[::stride]
     linked = ~overlaps_a_hole(t_node[:-1], t_node[1:], holes)
     weight[~linked, 1:] = 0.0   # past a node, an interval over a hole cannot say where the device turned
-    return Grid(t_node, seg_idx[:-1].reshape(n_int, stride), dt, ya, yb, int(seg_idx[-1]), weight, linked)
+    return Grid(t_node, seg_idx[:-1].reshape(n_int, stride), dt, ya, yb, int(seg_idx[-1]), weight, linked,
+                bool(on_sample[n_int * stride]))
 
 def gyro_at_mag_midpoints(grid: Grid, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s: float) -> np.ndarray:
     """Raw gyro at each used magnetometer stamp minus tau0/2: (N-1, stride, 3)."""

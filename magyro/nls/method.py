@@ -17,7 +17,8 @@ class NLS:
     """Ellipsoid, K, eps, C_b_m, the field and the attitude trajectory as one least squares (IPOPT)."""
 
     name: ClassVar[str] = "nls"
-    stride: int | None = None        # one attitude node every `stride` magnetometer samples (None: ~25 nodes/s)
+    stride: int | None = None        # one attitude node every `stride` segments, a segment per gyro or magnetometer
+                                     # sample (None: of 4, 12 and 40 the one nearest 25 nodes/s)
     max_iter: int = 100
     compiled: bool = True            # compiled CasADi kernels, cached on disk (MAGYRO_JIT=0 turns them off)
     loss: str = "l2"                 # "l2" or "huber" on the magnetometer residuals

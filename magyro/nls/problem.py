@@ -13,9 +13,9 @@ that IPOPT sees numbers of order one:
     phi  (3 x (N-1))  attitude at nodes 1..N-1: C_m^i(tau_n) = Cbar_n Exp(phi_n)
 
 Node 0 sits on the first magnetometer sample with C_i^m = I (the gauge of
-docs/spec.md section 1, paper eq. 12). Nodes sit on every `stride`-th magnetometer
-sample; between them the gyro is integrated in sub-steps ending on every
-gyro and magnetometer time, each a rotation by
+docs/spec.md section 1, paper eq. 12). Nodes sit on every `stride`-th segment
+boundary (every magnetometer and gyro time, grid.py); between them the gyro is integrated in
+sub-steps ending on every gyro and magnetometer time, each a rotation by
 (w_a + w_b)/2 dt + dt^2/12 (w_a x w_b), w = K y_g + eps (third-order local
 error for rates linear in time). Residuals, whitened:
 
@@ -49,7 +49,9 @@ GLOBAL_SLICES = {"U": slice(0, 6), "dh": slice(6, 9), "dK": slice(9, 18), "deps"
 TIME_OFFSET_SCALE_S = 0.01
 HOLE_LINK_STD_RAD = 0.1   # across a hole in the gyro record the attitudes are linked this loosely (a gauge only)
 UPPER_INDEX = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
-GLOBAL_LAYOUT = [("S0", 9), ("h0", 3), ("K0", 9), ("eps0", 3), ("m0", 3), ("B", 6), ("field_scale", 1), ("Winv", 9), ("w_mag", 1), ("tau0", 1)]
+GLOBAL_LAYOUT = [("S0", 9), ("h0", 3), ("K0", 9), ("eps0", 3), ("m0", 3), ("B", 6), ("field_scale", 1), ("Winv", 9), ("w_mag", 1), ("tau0", 1),
+                 ("huber", 1)]
+NO_HUBER = 1e30   # the Huber threshold (noise sigmas) of the plain least squares: no residual reaches it
 
 
 # ------------------------------------------------------------- SX building blocks
@@ -99,7 +101,7 @@ def unpack_globals(theta, g):
     m_raw = parts["m0"] + ca.mtimes(ca.reshape(parts["B"], 3, 2), theta[GLOBAL_SLICES["dm"]])
     m_i = m_raw / ca.norm_2(m_raw)
     tau = parts["tau0"] + (TIME_OFFSET_SCALE_S * theta[GLOBAL_SLICES["dtau"]] if theta.shape[0] > N_GLOBAL else 0)
-    return S, h, K, eps, m_i, tau, ca.reshape(parts["Winv"], 3, 3), parts["w_mag"]
+    return S, h, K, eps, m_i, tau, ca.reshape(parts["Winv"], 3, 3), parts["w_mag"], parts["huber"]
 
 
 def data_layout(stride: int, L: int, walk: bool = False) -> list[tuple[str, int]]:
@@ -122,19 +124,21 @@ def global_number(p: np.ndarray, name: str) -> float:
     return float(np.asarray(global_part(p, name)).item())
 
 
-def huber_scaled(r, threshold: float):
-    """r scaled so that |r|^2 / 2 becomes Huber's rho(|r|): quadratic inside `threshold`, linear outside."""
+def huber_scaled(r, threshold):
+    """r scaled so that |r|^2 / 2 becomes Huber's rho(|r|): quadratic inside `threshold`, linear outside.
+    A parameter, not a constant of the kernel, so the plain least squares (threshold NO_HUBER) and Huber's
+    share their compiled code."""
     n = ca.norm_2(r)
     outside = n > threshold
     n_safe = ca.if_else(outside, n, 2.0 * threshold)
     return r * ca.if_else(outside, ca.sqrt(threshold * (2.0 * n_safe - threshold)) / n_safe, 1.0)
 
 
-def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, huber: float | None = None, walk: bool = False):
+def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool = False):
     """Whitened residuals of one interval: `stride` magnetometer samples, then the gyro mismatch, then (with a
     moving hard iron, `walk`) its random-walk step. A node's state s is phi (3), then eta (3) when `walk`:
     the hard iron over the interval from the node is h + field_scale * eta_k."""
-    S, h, K, eps, m_i, tau, Winv, w_mag = unpack_globals(theta, g)
+    S, h, K, eps, m_i, tau, Winv, w_mag, huber = unpack_globals(theta, g)
     phi_k, phi_k1 = s_k[:3], s_k1[:3]
     if walk:
         h = h + global_part(g, "field_scale") * s_k[3:6]
@@ -153,7 +157,7 @@ def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, huber: float
         w_mid = ca.mtimes(K, parts["ymid"][3 * i : 3 * i + 3]) + eps
         v = rotate_inverse(quat_conj(quat_exp(tau * w_mid)), v)
         r_mag = (parts["ymag"][3 * i : 3 * i + 3] - ca.mtimes(S, v) - h) * (w_mag * parts["wseg"][i])
-        res.append(r_mag if huber is None else huber_scaled(r_mag, huber))
+        res.append(huber_scaled(r_mag, huber))
         for l in range(L):
             j = i * L + l
             dt = parts["dt"][j]
@@ -187,15 +191,14 @@ class Linearisation:
 KERNEL_NAMES = ("interval_residuals", "interval_gradient", "interval_gauss_newton")
 
 
-def interval_kernels(n_theta: int, n_glob_p: int, n_data: int, stride: int, L: int, huber: float | None,
-                     walk: bool = False):
+def interval_kernels(n_theta: int, n_glob_p: int, n_data: int, stride: int, L: int, walk: bool = False):
     """The three per-interval SX kernels: residuals; sum of squares and its gradient; Gauss-Newton blocks."""
     th = ca.SX.sym("theta", n_theta)
     pk = ca.SX.sym("s_k", node_size(walk))
     pk1 = ca.SX.sym("s_k1", node_size(walk))
     g = ca.SX.sym("g", n_glob_p)
     d = ca.SX.sym("d", n_data)
-    r = interval_residuals(th, pk, pk1, g, d, stride, L, huber, walk)
+    r = interval_residuals(th, pk, pk1, g, d, stride, L, walk)
     JthT = ca.jacobian(r, th).T
     Jk = ca.jacobian(r, pk)
     Jk1 = ca.jacobian(r, pk1)
@@ -209,6 +212,24 @@ def interval_kernels(n_theta: int, n_glob_p: int, n_data: int, stride: int, L: i
                     [JthT, ca.mtimes(JthT, Jk), ca.mtimes(JthT, Jk1), ca.mtimes(Jk.T, Jk), ca.mtimes(Jk1.T, Jk1),
                      ca.mtimes(Jk.T, Jk1)]),
     ]
+
+
+def kernel_key(stride: int, L: int, n_theta: int, walk: bool) -> str:
+    """What determines the kernels completely (with the source of this module, see kernels.cache_digest)."""
+    return f"stride={stride} substeps={L} theta={n_theta}" + (" walk" if walk else "")
+
+
+def kernel_set(stride: int, L: int, n_theta: int, walk: bool, compiled: bool = True) -> list[ca.Function]:
+    """The three interval kernels of a shape: compiled (installed with magyro, cached, or compiled now) when
+    `compiled`, else the interpreted SX functions."""
+    key = kernel_key(stride, L, n_theta, walk)
+    cached = [load_cached_kernel(name, key) for name in KERNEL_NAMES] if compiled else [None]
+    if all(k is not None for k in cached):  # compiled before: no symbolic build needed
+        return cached
+    n_glob_p = sum(k for _, k in GLOBAL_LAYOUT)
+    n_data = sum(k for _, k in data_layout(stride, L, walk))
+    kernels = interval_kernels(n_theta, n_glob_p, n_data, stride, L, walk)
+    return compile_kernels(kernels, key) if compiled else kernels
 
 
 def node_size(walk: bool) -> int:
@@ -228,6 +249,7 @@ class JointProblem:
                  walk_density: float | None = None):
         self.grid = grid
         self.walk_density = walk_density
+        self.huber = huber
         self.walk = walk = walk_density is not None
         self.B = node_size(walk)
         self.n_theta = N_GLOBAL + (1 if estimate_time_offset else 0)
@@ -238,18 +260,11 @@ class JointProblem:
         self.n_x = self.n_theta + self.B * self.n_int
         self.n_res_per_interval = 3 * s + 3 + (3 if walk else 0)
 
-        key = f"stride={s} substeps={L} theta={self.n_theta} huber={huber!r}" + (" walk" if walk else "")
-        cached = [load_cached_kernel(name, key) for name in KERNEL_NAMES] if compiled else [None]
-        if all(k is not None for k in cached):  # compiled before: no symbolic build needed
-            self.residual_kernel, self.gradient_kernel, self.gn_kernel = cached
-        else:
-            kernels = interval_kernels(self.n_theta, self.n_glob_p, self.n_data, s, L, huber, walk)
-            if compiled:
-                kernels = compile_kernels(kernels, key)
-            self.residual_kernel, self.gradient_kernel, self.gn_kernel = kernels
+        self.kernel_key = kernel_key(s, L, self.n_theta, walk)
+        self.residual_kernel, self.gradient_kernel, self.gn_kernel = kernel_set(s, L, self.n_theta, walk, compiled)
         th = ca.SX.sym("theta", self.n_theta)
         g = ca.SX.sym("g", self.n_glob_p)
-        S, h, K, eps, m_i, tau, _, _ = unpack_globals(th, g)
+        S, h, K, eps, m_i, tau, _, _, _ = unpack_globals(th, g)
         self.physical_function = ca.Function(
             "physical", [th, g], [S, h, K, eps, m_i, tau], ["theta", "g"], ["S", "h", "K", "eps", "m_i", "tau"]
         )
@@ -333,7 +348,7 @@ class JointProblem:
             "S0": lin.S0, "h0": lin.h0, "K0": lin.K0, "eps0": lin.eps0, "m0": lin.m0,
             "B": so3.tangent_basis(lin.m0), "field_scale": np.array([lin.field_scale]),
             "Winv": np.linalg.inv(Lchol) / sigma_gyro_density, "w_mag": np.array([1.0 / sigma_mag]),
-            "tau0": np.array([tau0_s]),
+            "tau0": np.array([tau0_s]), "huber": np.array([NO_HUBER if self.huber is None else self.huber]),
         }
         gvec = np.concatenate([np.asarray(glob[k], float).reshape(-1, order="F") for k, _ in GLOBAL_LAYOUT])
         C = lin.C_m_i_nominal

@@ -18,7 +18,7 @@ from magyro import so3
 from magyro.front import noise
 from magyro.front.initial import linear_gyro_estimate, with_time_offset
 from magyro.front.prepare import Prepared
-from magyro.nls.grid import Grid, build_grid
+from magyro.nls.grid import STRIDES, Grid, build_grid
 from magyro.nls.method import NLS
 from magyro.options import Options
 from magyro.observability.gate import unexcited_directions
@@ -96,10 +96,19 @@ def initial_field(C_nodes, field_m_nodes, seconds_n: int = 100) -> np.ndarray:
 
 
 def default_stride(session: Session, node_rate_hz: float = NODE_RATE_HZ) -> int:
-    """Segments per attitude node for about `node_rate_hz` nodes a second. Segments run between magnetometer
-    samples a typical (median) interval apart, longer intervals cut to that length (`grid.segment_starts`):
-    a magnetometer whose held rows were dropped (BROAD: 3.5 and 10.5 ms) is cut back to 3.5 ms segments."""
-    return max(1, int(round(1.0 / (float(np.median(np.diff(session.t_mag_s))) * node_rate_hz))))
+    """Segments per attitude node, from the few STRIDES, for nodes nearest `node_rate_hz` a second.
+
+    Segments run between the boundaries of `grid.segment_starts` (every magnetometer sample and gyro time),
+    a typical (median) segment apart. The choice is from a fixed set so that the kernels, which depend on the
+    stride only, are a small set compiled once: BROAD (285.7 Hz) and a phone (gyro 200 Hz, magnetometer
+    50 Hz) take 12, 100 Hz takes 4, a 1 kHz gyro 40."""
+    t_mag = session.t_mag_s[(session.t_mag_s >= session.t_gyro_s[0]) & (session.t_mag_s <= session.t_gyro_s[-1])]
+    if len(t_mag) < 2:
+        return STRIDES[0]
+    inside = session.t_gyro_s[(session.t_gyro_s > t_mag[0]) & (session.t_gyro_s < t_mag[-1])]
+    segment_s = float(np.median(np.diff(np.union1d(t_mag, inside))))
+    wanted = 1.0 / (segment_s * node_rate_hz)
+    return min(STRIDES, key=lambda stride: abs(np.log(stride / wanted)))
 
 
 def linearise(prep: Prepared, grid: Grid, options: Options, search_lag: bool = True) -> Linearisation:
