@@ -2,7 +2,11 @@
 
     python benchmarks/bench_cold_start.py [--repeat 3] [--out results.json]
 
-Every run is its own `magyro` process with MAGYRO_CACHE_DIR set to a folder of
+magyro is first installed as a user installs it (`pip install .`, here
+`pip install --no-deps --target DIR .`, with pip's isolated build, so that it
+runs on the running Python's dependencies: the install compiles the usual kernels
+into the package, and its seconds are in the table), and every run is a
+`python -m magyro` process of that copy with MAGYRO_CACHE_DIR set to a folder of
 this benchmark's; the files that appear in that folder during a run are the
 kernels it compiled. Cases:
 
@@ -12,6 +16,8 @@ kernels it compiled. Cases:
     (c) `magyro solve data/broad-02.parquet --loss huber` right after (a)'s solve
     (d) `magyro solve data/broad-02.parquet --split-check` right after (a)'s solve
     (e) `magyro solve data/simulated-phone-module.parquet` (another rate) right after (a)'s solve
+    (f) `magyro solve data/broad-02.parquet` from the source tree on an empty cache (an editable install, or
+        an install without a C compiler: the first solve compiles)
 
 "Right after (a)'s solve" is a copy of the cache as (a) left it, one copy per
 case, so no case profits from another's kernels. Each case then runs a second
@@ -45,7 +51,22 @@ CASES = [
     ("c", "solve broad-02 --loss huber", ["solve", str(BROAD), "--loss", "huber"], "calib", "after solve"),
     ("d", "solve broad-02 --split-check", ["solve", str(BROAD), "--split-check"], "calib", "after solve"),
     ("e", "solve simulated-phone-module", ["solve", str(PHONE)], "calib", "after solve"),
+    ("f", "solve broad-02, from the source tree", ["solve", str(BROAD)], "calib", "empty, source tree"),
 ]
+INSTALLED = {}   # "site": the folder magyro was installed into
+
+
+def install_magyro(folder: Path) -> float:
+    """`pip install` this checkout into `folder` (no dependencies: the running Python's); its seconds."""
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
+                    "--target", str(folder), str(REPO)], check=True, stdout=subprocess.DEVNULL)
+    seconds = time.perf_counter() - start
+    INSTALLED["site"] = folder
+    where = subprocess.run([sys.executable, "-c", "import magyro; print(magyro.__file__)"], capture_output=True,
+                           text=True, check=True, env={**os.environ, "PYTHONPATH": str(folder)}, cwd=folder).stdout
+    assert where.startswith(str(folder)), where
+    return seconds
 
 
 def magyro_executable() -> str:
@@ -57,14 +78,18 @@ def cache_files(cache: Path) -> set[str]:
     return {str(p.relative_to(cache)) for p in cache.rglob("*") if p.is_file()} if cache.exists() else set()
 
 
-def run_in_cache(args: list[str], cache: Path, out: Path | None) -> dict:
-    """One magyro process with MAGYRO_CACHE_DIR=cache: wall seconds, peak RSS and the cache files it added."""
-    argv = [magyro_executable(), *args] + (["-o", str(out)] if out else [])
+def run_in_cache(args: list[str], cache: Path, out: Path | None, installed: bool = True) -> dict:
+    """One magyro process (the installed copy, else the source tree's) with MAGYRO_CACHE_DIR=cache: wall
+    seconds, peak RSS and the cache files it added."""
+    argv = ([sys.executable, "-m", "magyro"] if installed else [magyro_executable()]) + args + (["-o", str(out)] if out else [])
     before = cache_files(cache)
     env = {**os.environ, "MAGYRO_CACHE_DIR": str(cache)}
+    if installed:
+        env["PYTHONPATH"] = str(INSTALLED["site"])
     with tempfile.TemporaryFile() as stderr:
         start = time.perf_counter()
-        child = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=stderr, env=env)
+        child = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=stderr, env=env,
+                                 cwd=INSTALLED["site"] if installed else None)   # not the checkout's magyro
         _, status, usage = os.wait4(child.pid, 0)
         wall_s = time.perf_counter() - start
         code = os.waitstatus_to_exitcode(status)
@@ -84,6 +109,7 @@ def one_round(folder: Path) -> list[dict]:
     """Every case once: its first run on its starting cache, then its second run on the same cache."""
     calib = folder / "calib.json"
     after_solve = folder / "cache_solved"
+    after_solve.mkdir()      # magyro makes its cache folder only when it compiles
     first = run_in_cache(CASES[0][2], after_solve, calib)     # (a) cold: the README's first command
     second = run_in_cache(CASES[0][2], after_solve, calib)    # (a) warm
     rows = [{"case": CASES[0][0], "what": CASES[0][1], "cache": "empty", "first": first, "second": second}]
@@ -91,9 +117,12 @@ def one_round(folder: Path) -> list[dict]:
         cache = folder / f"cache_{n}"
         if start == "after solve":
             shutil.copytree(after_solve, cache)
+        else:
+            cache.mkdir()
         out = calib if output == "calib" else None
-        first = run_in_cache(args, cache, out)
-        second = run_in_cache(args, cache, out)
+        installed = "source tree" not in start
+        first = run_in_cache(args, cache, out, installed)
+        second = run_in_cache(args, cache, out, installed)
         rows.append({"case": key, "what": what, "cache": start, "first": first, "second": second})
         shutil.rmtree(cache)
     return rows
@@ -138,14 +167,29 @@ def main() -> None:
     load_start = (time.perf_counter(), busy_cpu_s(), own_cpu_s())
 
     rounds = []
+    site = Path(tempfile.mkdtemp(prefix="magyro-installed-"))
+    try:
+        install_s = install_magyro(site)
+        print(f"pip install (no dependencies, compiles the installed kernels): {install_s:.1f} s", flush=True)
+        measure(args, rounds)
+    finally:
+        shutil.rmtree(site, ignore_errors=True)
+    report(args, rounds, load_start, install_s)
+
+
+def measure(args, rounds: list) -> None:
     for n in range(args.repeat):
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
             rounds.append(one_round(Path(tmp)))
             print(f"round {n + 1}/{args.repeat}: {time.perf_counter() - t0:.0f} s", flush=True)
+
+
+def report(args, rounds: list, load_start, install_s: float) -> None:
     rows = summarise(rounds)
     load_line = other_load_line(load_start)
 
+    print(f"\npip install of magyro alone (kernels compiled into the package): {install_s:.1f} s")
     print(f"\nfirst run against second run on the same kernel cache, median of {args.repeat} round(s); "
           f"new cache files = kernels compiled (one value per round when they differ)\n{load_line}\n")
     print(table(rows))
@@ -167,7 +211,7 @@ def main() -> None:
               + (f": {', '.join(r['added'])}" if compiled else "") + ")")
 
     if args.out:
-        summary = {"repeat": args.repeat, "results": rows, "other_load": load_line}
+        summary = {"repeat": args.repeat, "install_s": install_s, "results": rows, "other_load": load_line}
         args.out.write_text(json.dumps(summary, indent=2) + "\n")
 
 

@@ -1,7 +1,10 @@
-"""Compiled CasADi kernels, cached on disk.
+"""Compiled CasADi kernels: installed with magyro, or compiled once and cached on disk.
 
-The per-interval kernels do not depend on the session's length, only on the
-grid's shape (stride, sub-steps), so their C code is generated once, compiled
+The per-interval kernels do not depend on the session's length, its rates or
+the loss, only on the stride (grid.STRIDES), so installing magyro compiles the
+usual strides' kernels into the package (setup.py, `install_kernels`) and a
+first solve compiles nothing. Any other shape (a stride of the user's, a
+moving hard iron, no time offset) has its C code generated once, compiled
 with the machine's C compiler and kept in a cache folder keyed by a hash of the
 code. Later runs load the shared library in milliseconds. Without a compiler
 (or with MAGYRO_JIT=0) the interpreted kernel is used: same numbers, slower.
@@ -25,6 +28,7 @@ from pathlib import Path
 import casadi as ca
 
 COMPILE_FLAGS = ["-O1", "-shared", "-fPIC"]
+INSTALLED = Path(__file__).with_name("installed_kernels")   # filled when magyro is installed (setup.py)
 
 
 def cache_dir() -> Path:
@@ -46,7 +50,7 @@ def compile_kernels(fns: list[ca.Function], key: str) -> list[ca.Function]:
     """`compile_kernel` for several kernels of one shape, their compilers run side by side."""
     if not jit_enabled():
         return list(fns)
-    libs = [library_path(fn.name(), key) for fn in fns]
+    libs = [existing_library(fn.name(), key) or library_path(fn.name(), key) for fn in fns]
     missing = [(fn, lib) for fn, lib in zip(fns, libs) if not lib.exists()]
     if missing:
         say_compiling(len(missing), key)
@@ -70,22 +74,35 @@ def compile_kernel(fn: ca.Function, key: str) -> ca.Function:
     """
     if not jit_enabled():
         return fn
-    lib = library_path(fn.name(), key)
+    lib = existing_library(fn.name(), key) or library_path(fn.name(), key)
     if not lib.exists() and not build_library(generate_c(fn), lib):
         return fn
     return ca.external(fn.name(), str(lib))
 
 
+def library_name(name: str, key: str) -> str:
+    return f"{name}_{cache_digest(key)}.so"
+
+
 def library_path(name: str, key: str) -> Path:
-    return cache_dir() / f"{name}_{cache_digest(key)}.so"
+    """Where the kernel is cached when this machine compiles it."""
+    return cache_dir() / library_name(name, key)
+
+
+def existing_library(name: str, key: str) -> Path | None:
+    """The kernel's shared library as installed with magyro, else as cached, else None."""
+    for lib in (INSTALLED / library_name(name, key), library_path(name, key)):
+        if lib.exists():
+            return lib
+    return None
 
 
 def load_cached_kernel(name: str, key: str) -> ca.Function | None:
     """The compiled kernel `name` for `key` if it is in the cache (and compiling is on), else None."""
     if not jit_enabled():
         return None
-    lib = library_path(name, key)
-    return ca.external(name, str(lib)) if lib.exists() else None
+    lib = existing_library(name, key)
+    return ca.external(name, str(lib)) if lib is not None else None
 
 
 def cache_digest(key: str) -> str:

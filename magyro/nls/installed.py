@@ -1,0 +1,38 @@
+"""The kernels compiled when magyro is installed, so that a machine's first solve compiles nothing.
+
+`setup.py` calls `install_kernels` on the package being built. Installed are the kernels of the strides
+magyro picks for sessions of about 100 Hz and for sessions of 200-300 Hz (grid.STRIDES: 4 and 12), with
+the time offset estimated, as `magyro solve`, `observe`, `--loss huber` and `--split-check` use them;
+the loss, the rates, the gaps and the length of the session do not change a kernel. Other shapes are
+compiled on first use and cached (kernels.py).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from magyro.nls.grid import STRIDES
+from magyro.nls.kernels import build_libraries, find_compiler, generate_c, library_name
+from magyro.nls.problem import GLOBAL_LAYOUT, N_GLOBAL, data_layout, interval_kernels, kernel_key
+
+INSTALLED_STRIDES = STRIDES[:2]
+
+
+def installed_shapes() -> list[tuple[int, int, int, bool]]:
+    """(stride, sub-steps, theta size, moving hard iron) of each installed kernel set (`kernel_key`'s arguments)."""
+    return [(stride, 1, N_GLOBAL + 1, False) for stride in INSTALLED_STRIDES]
+
+
+def install_kernels(folder: Path) -> list[Path]:
+    """Compile the installed kernels into `folder`, the compilers side by side; the libraries made.
+    Nothing (and no error) without a C compiler: the first solve then compiles, or interprets."""
+    if find_compiler() is None:
+        return []
+    folder = Path(folder)
+    jobs = []
+    for stride, L, n_theta, walk in installed_shapes():
+        key = kernel_key(stride, L, n_theta, walk)
+        fns = interval_kernels(n_theta, sum(k for _, k in GLOBAL_LAYOUT), sum(k for _, k in data_layout(stride, L, walk)),
+                               stride, L, walk)
+        jobs += [(generate_c(fn), folder / library_name(fn.name(), key)) for fn in fns]
+    built = build_libraries(jobs)
+    return [lib for (_, lib), ok in zip(jobs, built) if ok]

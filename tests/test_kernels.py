@@ -1,0 +1,91 @@
+"""The solver kernels: a small fixed set, compiled when magyro is installed, shared by every session shape.
+
+Issue 14: every new rate, `--loss huber` and `observe` used to compile kernels of their own (one user's
+cache held 21 after half an hour), and the first solve waited 10-20 s for a compiler.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import magyro
+from magyro.nls.grid import build_grid
+from magyro.nls.installed import installed_shapes
+from magyro.nls.problem import JointProblem, kernel_key
+from magyro.nls.solve import default_stride
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+
+
+def default_problem(session, **problem_options) -> JointProblem:
+    grid = build_grid(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, default_stride(session))
+    return JointProblem(grid, compiled=False, **problem_options)
+
+
+def resampled(session, gyro_hz: float, mag_hz: float, offset_s: float = 0.0):
+    """The session with its gyro and magnetometer taken at other rates (nearest sample), stamps on other clocks."""
+    def at(t, t_new, values):
+        return values[np.clip(np.searchsorted(t, t_new), 0, len(t) - 1)]
+    t0, t1 = session.t_gyro_s[0], session.t_gyro_s[-1]
+    t_gyro = np.arange(t0, t1, 1 / gyro_hz)
+    t_mag = np.arange(t0 + offset_s, t1, 1 / mag_hz)
+    return dataclasses.replace(session, t_gyro_s=t_gyro, gyro_rad_s=at(session.t_gyro_s, t_gyro, session.gyro_rad_s),
+                               t_mag_s=t_mag, mag=at(session.t_mag_s, t_mag, session.mag))
+
+
+@pytest.fixture(scope="module")
+def broad02():
+    return magyro.load_session(DATA / "broad-02.parquet")
+
+
+@pytest.mark.parametrize("rates", [None, (100, 100), (200, 50, 0.0013), (250, 25), (400, 100, 0.0021)])
+def test_the_usual_rates_need_only_installed_kernels(broad02, rates):
+    """BROAD's 285.7 Hz, the paper's 100 Hz, a phone's 200/50 Hz on two clocks and others: every default
+    problem, with either loss, is one of the installed shapes; so is the half of a split check."""
+    installed = {kernel_key(*shape) for shape in installed_shapes()}
+    session = broad02 if rates is None else resampled(broad02, *rates)
+    for huber in (None, 3.0):
+        assert default_problem(session, huber=huber).kernel_key in installed, (rates, huber)
+    half = dataclasses.replace(session, t_gyro_s=session.t_gyro_s[: len(session.t_gyro_s) // 2],
+                               gyro_rad_s=session.gyro_rad_s[: len(session.t_gyro_s) // 2])
+    assert default_problem(half).kernel_key in installed
+
+
+def test_the_phone_module_and_broad_share_one_kernel_set(broad02):
+    phone = magyro.load_session(DATA / "simulated-phone-module.parquet")
+    assert default_problem(phone).kernel_key == default_problem(broad02).kernel_key
+
+
+def test_other_shapes_are_not_installed_and_say_what_they_are(broad02):
+    installed = {kernel_key(*shape) for shape in installed_shapes()}
+    assert default_problem(broad02, walk_density=1.0).kernel_key not in installed
+    assert default_problem(broad02, estimate_time_offset=False).kernel_key not in installed
+
+
+def installed_magyro_has_kernels(cwd: Path) -> bool:
+    """Whether the magyro this Python imports outside the checkout (its site-packages) holds installed kernels."""
+    probe = "import magyro.nls.kernels as k; print(k.INSTALLED.is_dir() and any(k.INSTALLED.glob('*.so')))"
+    done = subprocess.run([sys.executable, "-c", probe], cwd=cwd, capture_output=True, text=True)
+    return done.returncode == 0 and done.stdout.strip() == "True"
+
+
+def test_an_installed_magyro_solves_on_an_empty_cache_without_compiling(tmp_path):
+    """The first solve on a machine, with magyro as `pip install .` leaves it (run outside the checkout, so the
+    installed copy is the one imported): nothing is compiled into the (empty) kernel cache."""
+    if not installed_magyro_has_kernels(tmp_path):
+        pytest.skip("the installed magyro holds no compiled kernels (an editable install, or installed without a "
+                    "C compiler); `pip install .` compiles them")
+    cache = tmp_path / "cache"
+    env = {**os.environ, "MAGYRO_CACHE_DIR": str(cache)}
+    env.pop("PYTHONPATH", None)
+    done = subprocess.run([sys.executable, "-m", "magyro", "solve", str(DATA / "simulated-phone-module.parquet"),
+                           "-o", str(tmp_path / "calib.json"), "-q"], env=env, capture_output=True, text=True,
+                          cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert not cache.exists() or not any(cache.iterdir()), sorted(p.name for p in cache.iterdir())
