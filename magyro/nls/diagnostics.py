@@ -14,7 +14,8 @@ from magyro.nls.grid import Grid
 from magyro.nls.hard_iron import hard_iron_at_samples
 from magyro.nls.information import Reduced, propagate
 from magyro.nls.method import NLS
-from magyro.nls.problem import N_GLOBAL, JointProblem
+from magyro.nls.interval import N_GLOBAL
+from magyro.nls.problem import JointProblem
 from magyro.nls.solve import Solution, gyro_residuals, magnetometer_residuals, residual_matrix
 from magyro.observability.gate import ObservabilityAnalysis
 from magyro.result.calibration import Calibration
@@ -139,7 +140,8 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
     C, Kg = qr_split(K)
     R = np.linalg.inv(S)
     h_samples = hard_iron_at_samples(problem, sol.x, sol.p, prep.session) if problem.walk else h
-    fit = residual_summary(problem, residual_matrix(problem, sol.x, sol.p), prep.session, R, h_samples)
+    r = residual_matrix(problem, sol.x, sol.p_call) if sol.residuals is None else sol.residuals
+    fit = residual_summary(problem, r, prep.session, R, h_samples)
     # No a-posteriori variance-factor scaling: the noise levels are already calibrated (given, from
     # rests with their correlation, or re-weighted from the residuals' effective scale); the plain
     # factor counts correlated samples as independent and would undo that. It is reported in `fit`.

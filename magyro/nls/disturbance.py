@@ -40,7 +40,8 @@ from magyro import so3
 from magyro.front.ellipsoid import calibrated_field
 from magyro.nls.information import Reduced
 from magyro.nls.hard_iron import hard_iron_at_samples
-from magyro.nls.problem import GLOBAL_SLICES, JointProblem, global_number
+from magyro.nls.interval import GLOBAL_SLICES, global_number
+from magyro.nls.problem import JointProblem
 from magyro.result.parts import FieldDisturbance
 from magyro.session import Session
 

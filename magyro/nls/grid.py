@@ -70,7 +70,7 @@ class Grid:
         return self.mag_weight.reshape(-1) > 0
 
 
-STRIDES = (4, 12, 40)     # the strides magyro picks from (solve.default_stride): each one set of kernels
+STRIDES = (4, 12)         # the strides magyro picks from (solve.default_stride): each one set of kernels
 MAX_SEGMENT_FACTOR = 1.5  # segments longer than this many typical segments (a hole in both records) are cut
 
 

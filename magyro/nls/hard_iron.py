@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from magyro.nls.problem import JointProblem, global_number
+from magyro.nls.interval import global_number
+from magyro.nls.problem import JointProblem
 from magyro.session import Session
 
 

@@ -43,13 +43,14 @@ def reduce_hessian(H_triu: ca.DM, G: int, block: int = 3) -> Reduced:
     of the block-tridiagonal attitude block: no dense N x N matrix is ever formed."""
     H_tt = np.array(ca.densify(H_triu[:G, :G]))
     H_tt = H_tt + np.triu(H_tt, 1).T
-    H_tp = np.array(ca.densify(H_triu[:G, G:]))
+    H_tp_dm = ca.densify(H_triu[:G, G:])
+    H_tp = np.array(H_tp_dm)
     D_triu = H_triu[G:, G:]
     D = D_triu + ca.triu(D_triu, False).T
     solver = ca.Linsol("attitude_block", "ldl", D.sparsity())
     solver.sfact(D)
     solver.nfact(D)
-    Dinv_Hpt = np.array(solver.solve(D, ca.DM(H_tp.T)))
+    Dinv_Hpt = np.array(solver.solve(D, H_tp_dm.T))   # the right-hand side stays a DM: no numpy round trip
     return Reduced(H_tt - H_tp @ Dinv_Hpt, H_tp, D, solver, Dinv_Hpt, block)
 
 

@@ -1,7 +1,7 @@
 """The kernels compiled when magyro is installed, so that a machine's first solve compiles nothing.
 
-`setup.py` calls `install_kernels` on the package being built. Installed are the kernels of the strides
-magyro picks for sessions of about 100 Hz and for sessions of 200-300 Hz (grid.STRIDES: 4 and 12), with
+`setup.py` calls `install_kernels` on the package being built. Installed are the kernels of both strides
+magyro picks from (grid.STRIDES: 12, and 4 for sensors below 96 Hz), with
 the time offset estimated, as `magyro solve`, `observe`, `--loss huber` and `--split-check` use them;
 the loss, the rates, the gaps and the length of the session do not change a kernel. Other shapes are
 compiled on first use and cached (kernels.py).
@@ -12,9 +12,9 @@ from pathlib import Path
 
 from magyro.nls.grid import STRIDES
 from magyro.nls.kernels import build_libraries, find_compiler, generate_c, library_name
-from magyro.nls.problem import GLOBAL_LAYOUT, N_GLOBAL, data_layout, interval_kernels, kernel_key
+from magyro.nls.interval import GLOBAL_LAYOUT, N_GLOBAL, data_layout, interval_kernels, kernel_key
 
-INSTALLED_STRIDES = STRIDES[:2]
+INSTALLED_STRIDES = STRIDES
 
 
 def installed_shapes() -> list[tuple[int, int, int, bool]]:

@@ -106,7 +106,7 @@ def load_cached_kernel(name: str, key: str) -> ca.Function | None:
 
 
 def cache_digest(key: str) -> str:
-    sources = b"".join(Path(__file__).with_name(m).read_bytes() for m in ("problem.py", "kernels.py"))
+    sources = b"".join(Path(__file__).with_name(m).read_bytes() for m in ("interval.py", "kernels.py"))
     text = key.encode() + sources + " ".join(COMPILE_FLAGS).encode() + ca.__version__.encode()
     return hashlib.sha256(text).hexdigest()[:20]
 

@@ -18,7 +18,7 @@ class NLS:
 
     name: ClassVar[str] = "nls"
     stride: int | None = None        # one attitude node every `stride` segments, a segment per gyro or magnetometer
-                                     # sample (None: of 4, 12 and 40 the one nearest 25 nodes/s)
+                                     # sample (None: 12, or 4 below 96 Hz)
     max_iter: int = 100
     compiled: bool = True            # compiled CasADi kernels, cached on disk (MAGYRO_JIT=0 turns them off)
     loss: str = "l2"                 # "l2" or "huber" on the magnetometer residuals

@@ -42,133 +42,10 @@ import numpy as np
 
 from magyro import so3
 from magyro.nls.grid import Grid, gyro_at_mag_midpoints
-from magyro.nls.kernels import compile_kernels, load_cached_kernel
+from magyro.nls.interval import (GLOBAL_LAYOUT, N_GLOBAL, NO_HUBER, data_layout, kernel_key, kernel_set, node_size,
+                                 unpack_globals)
 
-N_GLOBAL = 23          # calibration corrections without the time offset; 24 with it
-GLOBAL_SLICES = {"U": slice(0, 6), "dh": slice(6, 9), "dK": slice(9, 18), "deps": slice(18, 21), "dm": slice(21, 23), "dtau": slice(23, 24)}
-TIME_OFFSET_SCALE_S = 0.01
 HOLE_LINK_STD_RAD = 0.1   # across a hole in the gyro record the attitudes are linked this loosely (a gauge only)
-UPPER_INDEX = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
-GLOBAL_LAYOUT = [("S0", 9), ("h0", 3), ("K0", 9), ("eps0", 3), ("m0", 3), ("B", 6), ("field_scale", 1), ("Winv", 9), ("w_mag", 1), ("tau0", 1),
-                 ("huber", 1)]
-NO_HUBER = 1e30   # the Huber threshold (noise sigmas) of the plain least squares: no residual reaches it
-
-
-# ------------------------------------------------------------- SX building blocks
-def quat_exp(phi):
-    """Quaternion [w, x, y, z] of Exp(phi); smooth at zero (series branch, safe argument)."""
-    th2 = ca.dot(phi, phi)
-    small = th2 < 1e-6
-    th_safe = ca.sqrt(ca.if_else(small, 1.0, th2))
-    c = ca.if_else(small, 1.0 - th2 / 8.0 + th2 * th2 / 384.0, ca.cos(th_safe / 2.0))
-    s = ca.if_else(small, 0.5 - th2 / 48.0 + th2 * th2 / 3840.0, ca.sin(th_safe / 2.0) / th_safe)
-    return ca.vertcat(c, s * phi)
-
-
-def quat_mul(a, b):
-    aw, av = a[0], a[1:]
-    bw, bv = b[0], b[1:]
-    return ca.vertcat(aw * bw - ca.dot(av, bv), aw * bv + bw * av + ca.cross(av, bv))
-
-
-def quat_conj(q):
-    return ca.vertcat(q[0], -q[1:])
-
-
-def rotate_inverse(q, v):
-    """R(q)^T v."""
-    u = q[1:]
-    c = ca.cross(u, v)
-    return v - 2 * q[0] * c + 2 * ca.cross(u, c)
-
-
-def unpack_globals(theta, g):
-    """Physical parameters (S = R^-1, h, K, eps, m^i) from corrections and the linearisation."""
-    o = 0
-    parts = {}
-    for name, n in GLOBAL_LAYOUT:
-        parts[name] = g[o : o + n]
-        o += n
-    S0 = ca.reshape(parts["S0"], 3, 3)
-    U = theta[GLOBAL_SLICES["U"]]
-    Umat = ca.SX.zeros(3, 3) if isinstance(theta, ca.SX) else ca.MX.zeros(3, 3)
-    for i, (r, c) in enumerate(UPPER_INDEX):
-        Umat[r, c] = U[i]
-    S = ca.mtimes(S0, ca.DM.eye(3) + Umat)
-    h = parts["h0"] + parts["field_scale"] * theta[GLOBAL_SLICES["dh"]]
-    K = ca.reshape(parts["K0"], 3, 3) + ca.reshape(theta[GLOBAL_SLICES["dK"]], 3, 3)
-    eps = parts["eps0"] + theta[GLOBAL_SLICES["deps"]]
-    m_raw = parts["m0"] + ca.mtimes(ca.reshape(parts["B"], 3, 2), theta[GLOBAL_SLICES["dm"]])
-    m_i = m_raw / ca.norm_2(m_raw)
-    tau = parts["tau0"] + (TIME_OFFSET_SCALE_S * theta[GLOBAL_SLICES["dtau"]] if theta.shape[0] > N_GLOBAL else 0)
-    return S, h, K, eps, m_i, tau, ca.reshape(parts["Winv"], 3, 3), parts["w_mag"], parts["huber"]
-
-
-def data_layout(stride: int, L: int, walk: bool = False) -> list[tuple[str, int]]:
-    return [("Cbar", 9), ("qD", 4), ("w_int", 1), ("ymag", 3 * stride), ("wseg", stride), ("ymid", 3 * stride),
-            ("dt", stride * L), ("ya", 3 * stride * L), ("yb", 3 * stride * L)] + ([("w_walk", 1)] if walk else [])
-
-
-def global_part(g, name: str):
-    """The entry `name` of the global parameter vector g (GLOBAL_LAYOUT)."""
-    o = 0
-    for entry, n in GLOBAL_LAYOUT:
-        if entry == name:
-            return g[o : o + n]
-        o += n
-    raise KeyError(name)
-
-
-def global_number(p: np.ndarray, name: str) -> float:
-    """The one-number global `name` (e.g. w_mag = 1 / sigma_mag, field_scale) of a numeric parameter vector."""
-    return float(np.asarray(global_part(p, name)).item())
-
-
-def huber_scaled(r, threshold):
-    """r scaled so that |r|^2 / 2 becomes Huber's rho(|r|): quadratic inside `threshold`, linear outside.
-    A parameter, not a constant of the kernel, so the plain least squares (threshold NO_HUBER) and Huber's
-    share their compiled code."""
-    n = ca.norm_2(r)
-    outside = n > threshold
-    n_safe = ca.if_else(outside, n, 2.0 * threshold)
-    return r * ca.if_else(outside, ca.sqrt(threshold * (2.0 * n_safe - threshold)) / n_safe, 1.0)
-
-
-def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool = False):
-    """Whitened residuals of one interval: `stride` magnetometer samples, then the gyro mismatch, then (with a
-    moving hard iron, `walk`) its random-walk step. A node's state s is phi (3), then eta (3) when `walk`:
-    the hard iron over the interval from the node is h + field_scale * eta_k."""
-    S, h, K, eps, m_i, tau, Winv, w_mag, huber = unpack_globals(theta, g)
-    phi_k, phi_k1 = s_k[:3], s_k1[:3]
-    if walk:
-        h = h + global_part(g, "field_scale") * s_k[3:6]
-    o = 0
-    parts = {}
-    for name, n in data_layout(stride, L, walk):
-        parts[name] = d[o : o + n]
-        o += n
-    Cbar = ca.reshape(parts["Cbar"], 3, 3)
-    q_k = quat_exp(phi_k)
-    n_k = rotate_inverse(q_k, ca.mtimes(Cbar.T, m_i))  # C_i^m(tau_k) m^i
-    Q = ca.DM([1, 0, 0, 0])
-    res = []
-    for i in range(stride):
-        v = rotate_inverse(Q, n_k)  # C_i^m(t_j) m^i at the stamp; then back by the time offset
-        w_mid = ca.mtimes(K, parts["ymid"][3 * i : 3 * i + 3]) + eps
-        v = rotate_inverse(quat_conj(quat_exp(tau * w_mid)), v)
-        r_mag = (parts["ymag"][3 * i : 3 * i + 3] - ca.mtimes(S, v) - h) * (w_mag * parts["wseg"][i])
-        res.append(huber_scaled(r_mag, huber))
-        for l in range(L):
-            j = i * L + l
-            dt = parts["dt"][j]
-            wa = ca.mtimes(K, parts["ya"][3 * j : 3 * j + 3]) + eps
-            wb = ca.mtimes(K, parts["yb"][3 * j : 3 * j + 3]) + eps
-            Q = quat_mul(Q, quat_exp(0.5 * (wa + wb) * dt + (dt * dt / 12.0) * ca.cross(wa, wb)))
-    qE = quat_mul(quat_mul(quat_mul(quat_conj(Q), quat_conj(q_k)), parts["qD"]), quat_exp(phi_k1))
-    res.append(ca.mtimes(Winv, 2.0 * qE[0] * qE[1:]) * parts["w_int"])
-    if walk:
-        res.append((s_k1[3:6] - s_k[3:6]) * parts["w_walk"])
-    return ca.vertcat(*res)
 
 
 # ------------------------------------------------------------------ linearisation
@@ -187,55 +64,8 @@ class Linearisation:
 
 
 
+
 # -------------------------------------------------------------------- the problem
-KERNEL_NAMES = ("interval_residuals", "interval_gradient", "interval_gauss_newton")
-
-
-def interval_kernels(n_theta: int, n_glob_p: int, n_data: int, stride: int, L: int, walk: bool = False):
-    """The three per-interval SX kernels: residuals; sum of squares and its gradient; Gauss-Newton blocks."""
-    th = ca.SX.sym("theta", n_theta)
-    pk = ca.SX.sym("s_k", node_size(walk))
-    pk1 = ca.SX.sym("s_k1", node_size(walk))
-    g = ca.SX.sym("g", n_glob_p)
-    d = ca.SX.sym("d", n_data)
-    r = interval_residuals(th, pk, pk1, g, d, stride, L, walk)
-    JthT = ca.jacobian(r, th).T
-    Jk = ca.jacobian(r, pk)
-    Jk1 = ca.jacobian(r, pk1)
-    ssq = ca.sumsqr(r)
-    args = [th, pk, pk1, g, d]
-    return [
-        ca.Function(KERNEL_NAMES[0], args, [r]),
-        ca.Function(KERNEL_NAMES[1], args,
-                    [ssq, 0.5 * ca.gradient(ssq, th), 0.5 * ca.gradient(ssq, pk), 0.5 * ca.gradient(ssq, pk1)]),
-        ca.Function(KERNEL_NAMES[2], args,
-                    [JthT, ca.mtimes(JthT, Jk), ca.mtimes(JthT, Jk1), ca.mtimes(Jk.T, Jk), ca.mtimes(Jk1.T, Jk1),
-                     ca.mtimes(Jk.T, Jk1)]),
-    ]
-
-
-def kernel_key(stride: int, L: int, n_theta: int, walk: bool) -> str:
-    """What determines the kernels completely (with the source of this module, see kernels.cache_digest)."""
-    return f"stride={stride} substeps={L} theta={n_theta}" + (" walk" if walk else "")
-
-
-def kernel_set(stride: int, L: int, n_theta: int, walk: bool, compiled: bool = True) -> list[ca.Function]:
-    """The three interval kernels of a shape: compiled (installed with magyro, cached, or compiled now) when
-    `compiled`, else the interpreted SX functions."""
-    key = kernel_key(stride, L, n_theta, walk)
-    cached = [load_cached_kernel(name, key) for name in KERNEL_NAMES] if compiled else [None]
-    if all(k is not None for k in cached):  # compiled before: no symbolic build needed
-        return cached
-    n_glob_p = sum(k for _, k in GLOBAL_LAYOUT)
-    n_data = sum(k for _, k in data_layout(stride, L, walk))
-    kernels = interval_kernels(n_theta, n_glob_p, n_data, stride, L, walk)
-    return compile_kernels(kernels, key) if compiled else kernels
-
-
-def node_size(walk: bool) -> int:
-    """Unknowns per node: the attitude correction phi (3), and the hard iron's walk eta (3) when it moves."""
-    return 6 if walk else 3
-
 
 class JointProblem:
     """The least squares on one grid shape; data and linearisation enter as parameters.
@@ -312,16 +142,26 @@ class JointProblem:
 
     @cached_property
     def _hessian_graph(self):
+        """triu(J^T J) from the Gauss-Newton kernel, in the order of `hessian_sparsity`.
+
+        The kernel gives each interval's triu(J_theta^T J_theta), summed by the map itself (no n_theta x
+        n_res n_int J_theta^T is ever held: at 360k samples it and its transpose took 4 x 260 MB of patterns
+        and work vectors), and its contributions to its two nodes' columns already in compressed-column
+        order, so node n's column values are interval n-1's second-node part plus interval n's first-node
+        part: one sum, no permutation."""
         x, p, args = self._symbols
-        JthT, CL, CR, DL, DR, O = self.gn_kernel.map(self.n_int)(*args)
-        H_tt = ca.mtimes(JthT, JthT.T)
-        B = self.B
-        H_tp = ca.horzcat(CL[:, B:], ca.MX.zeros(self.n_theta, B)) + CR
-        H_pp = ca.horzcat(DL[:, B:], ca.MX.zeros(B, B)) + DR
-        assert H_tp.shape[1] == B * self.n_int
-        values = ca.vertcat(ca.vec(ca.densify(H_tt)), ca.vec(ca.densify(H_tp)), ca.vec(ca.densify(H_pp)), ca.vec(ca.densify(O)))
-        sp, perm = hessian_pattern(self.n_int, self.n_theta, self.B)
-        H = ca.MX(sp, values[perm])
+        k = self.gn_kernel
+        inputs = [ca.MX.sym(k.name_in(i), k.sparsity_in(i)) for i in range(k.n_in())]
+        hessian_parts = ca.Function("interval_hessian_parts", inputs, [ca.densify(v) for v in k(*inputs)[1:]])
+        theta_shared = [True, False, False, True, False]          # theta and g are the same for every interval
+        H_tt, first, second = hessian_parts.map(self.n_int, theta_shared, [True, False, False], {})(*args)
+        columns = ca.horzcat(first[:, 1:], ca.MX.zeros(first.shape[0], 1)) + second    # node n = 1..n_int
+        G, B = self.n_theta, self.B
+        node_1 = np.sort(np.concatenate(   # node 1's values: no previous node's rows
+            [np.arange(o, o + G) for o in column_starts(G, B)]
+            + [np.arange(o + G + B, o + G + B + c + 1) for c, o in enumerate(column_starts(G, B))]))
+        values = ca.vertcat(H_tt, columns[node_1.tolist(), 0], ca.vec(columns[:, 1:]))
+        H = ca.MX(hessian_sparsity(self.n_int, G, B), values)
         lam_f = ca.MX.sym("lam_f")
         lam_g = ca.MX.sym("lam_g", 0)
         hess_lag = ca.Function(
@@ -395,6 +235,10 @@ class JointProblem:
                 "ipopt.acceptable_iter": 2,
                 "ipopt.max_iter": 200,
                 "ipopt.linear_solver": "mumps",
+                # QAMD: the approximate minimum degree ordering that detects the quasi-dense theta rows of the KKT
+                # matrix. The automatic choice (METIS here) spends 2 s of MUMPS's analysis on them at 360k samples
+                # (0.03 s at 36k); QAMD 0.2 s.
+                "ipopt.mumps_pivot_order": 6,
             }
             opts.update(ipopt_options or {})
             x, p, _ = self._symbols
@@ -402,38 +246,18 @@ class JointProblem:
         return self._solver
 
 
-def hessian_pattern(n_int: int, G: int = N_GLOBAL, B: int = 3):
-    """Sparsity of triu(J^T J) and, per nonzero, its index in the stacked block values.
+def column_starts(G: int, B: int) -> list[int]:
+    """Where each of a node's B columns starts in `node_columns`' stacking (G theta rows, B previous, c+1 own)."""
+    sizes = [G + B + c + 1 for c in range(B)]
+    return [int(v) for v in np.cumsum([0] + sizes[:-1])]
 
-    Stacked values: vec(H_tt) (G x G), vec(H_tp) (G x Bn), vec(H_pp) (B x Bn,
-    diagonal blocks side by side), vec(O) (B x Bn, block k couples node k to k+1).
-    Column of node n (1..n_int), component c: the G theta rows, then node n-1's
-    B rows (n >= 2), then node n's rows 0..c. B is the node's size (3, or 6 with a moving hard iron).
-    """
-    o_tp, o_pp = G * G, G * G + G * B * n_int
-    o_o = o_pp + B * B * n_int
-    jt, it = np.triu_indices(G)[::-1]  # column-major upper triangle: for each column j, rows 0..j
-    order = np.lexsort((it, jt))
-    rows_t, perm_t = it[order], it[order] + G * jt[order]
-    node = np.repeat(np.arange(1, n_int + 1), B)
-    comp = np.tile(np.arange(B), n_int)
-    col = B * (node - 1) + comp                              # column within the node block
-    slots = np.arange(G + 2 * B)                             # theta rows, off-diagonal, diagonal
-    r = np.empty((len(col), G + 2 * B), dtype=np.int64)
-    q = np.empty_like(r)
-    r[:, :G] = slots[:G]
-    q[:, :G] = o_tp + slots[:G] + G * col[:, None]
-    a = np.arange(B)
-    r[:, G:G + B] = G + B * (node[:, None] - 2) + a
-    q[:, G:G + B] = o_o + a + B * col[:, None]
-    r[:, G + B:] = G + B * (node[:, None] - 1) + a
-    q[:, G + B:] = o_pp + a + B * col[:, None]
-    valid = np.ones_like(r, dtype=bool)
-    valid[:, G:G + B] = (node >= 2)[:, None]
-    valid[:, G + B:] = a[None, :] <= comp[:, None]
-    counts = valid.sum(axis=1)
-    rows = np.concatenate([rows_t, r[valid]])
-    perm = np.concatenate([perm_t, q[valid]])
-    colptr = np.concatenate([[0], np.cumsum(np.arange(1, G + 1)), G * (G + 1) // 2 + np.cumsum(counts)])
-    n_x = G + B * n_int
-    return ca.Sparsity(n_x, n_x, colptr.tolist(), rows.tolist()), perm.tolist()
+
+def hessian_sparsity(n_int: int, G: int = N_GLOBAL, B: int = 3) -> ca.Sparsity:
+    """Sparsity of triu(J^T J): the G x G theta block, theta rows over every node column, each node's own
+    upper triangle, and the block coupling node k to k+1 (node 1, the first unknown one, has no previous node).
+    Built from CasADi's sparsity algebra: no list of every nonzero is made in Python."""
+    ones = lambda sp: ca.DM(sp, 1)
+    own = ca.kron(ones(ca.Sparsity.diag(n_int)), ones(ca.Sparsity.upper(B))).sparsity()
+    coupling = ca.kron(ones(ca.Sparsity.band(n_int, -1)), ones(ca.Sparsity.dense(B, B))).sparsity()
+    top = ca.horzcat(ca.Sparsity.upper(G), ca.Sparsity.dense(G, B * n_int))
+    return ca.vertcat(top, ca.horzcat(ca.Sparsity(B * n_int, G), own.unite(coupling)))

@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 
 from magyro import so3
@@ -22,12 +23,13 @@ from magyro.nls.grid import STRIDES, Grid, build_grid
 from magyro.nls.method import NLS
 from magyro.options import Options
 from magyro.observability.gate import unexcited_directions
-from magyro.nls.problem import N_GLOBAL, TIME_OFFSET_SCALE_S, JointProblem, Linearisation
+from magyro.nls.interval import N_GLOBAL, TIME_OFFSET_SCALE_S
+from magyro.nls.problem import JointProblem, Linearisation
 from magyro.errors import InputError, ObservabilityError
 from magyro.result.reported import mirror_is_credible, qr_split
 from magyro.session import HOLE_FACTOR, Session, hole_steps, runs_of_true
 
-NODE_RATE_HZ = 25.0   # nodes per second: strides 1, 2 and 4 at 100 Hz give the same estimates and std to 1e-6
+MIN_NODE_RATE_HZ = 8.0   # attitude nodes per second at least: 8.3 (100 Hz, stride 12) and 25 (stride 4) agree to 0.03 std
 MAX_PASSES = 3
 NOISE_RESCALE_TOLERANCE = 0.2     # re-solve when the robust residual scale is off by more than this
 TIME_OFFSET_RELOOK_S2 = 1e-5      # re-solve when tau * (tau - tau0) exceeds this (s^2): the rotation
@@ -95,20 +97,22 @@ def initial_field(C_nodes, field_m_nodes, seconds_n: int = 100) -> np.ndarray:
     return m / np.linalg.norm(m)
 
 
-def default_stride(session: Session, node_rate_hz: float = NODE_RATE_HZ) -> int:
-    """Segments per attitude node, from the few STRIDES, for nodes nearest `node_rate_hz` a second.
+def default_stride(session: Session) -> int:
+    """Segments per attitude node: the largest of the few STRIDES that keeps MIN_NODE_RATE_HZ nodes a second.
 
     Segments run between the boundaries of `grid.segment_starts` (every magnetometer sample and gyro time),
-    a typical (median) segment apart. The choice is from a fixed set so that the kernels, which depend on the
-    stride only, are a small set compiled once: BROAD (285.7 Hz) and a phone (gyro 200 Hz, magnetometer
-    50 Hz) take 12, 100 Hz takes 4, a 1 kHz gyro 40."""
+    a typical (median) segment apart. Over an interval the attitude only carries the integrated gyro, so
+    fewer nodes cost no accuracy (paper-table1 at 100 Hz: stride 12 and 4 agree to 0.03 std, BROAD trial 02
+    at strides 40 and 12 to 0.01 std) and save memory and time: the nodes set the size of the Hessian and
+    of IPOPT's linear algebra. The choice is from a fixed set so that the kernels, which depend on the
+    stride only, are few and installed with magyro: 12 at 100-1000 Hz (BROAD's 285.7 Hz, a phone's 200 Hz
+    gyro with a 50 Hz magnetometer), 4 below 96 Hz."""
     t_mag = session.t_mag_s[(session.t_mag_s >= session.t_gyro_s[0]) & (session.t_mag_s <= session.t_gyro_s[-1])]
     if len(t_mag) < 2:
         return STRIDES[0]
     inside = session.t_gyro_s[(session.t_gyro_s > t_mag[0]) & (session.t_gyro_s < t_mag[-1])]
-    segment_s = float(np.median(np.diff(np.union1d(t_mag, inside))))
-    wanted = 1.0 / (segment_s * node_rate_hz)
-    return min(STRIDES, key=lambda stride: abs(np.log(stride / wanted)))
+    segments_per_s = 1.0 / float(np.median(np.diff(np.union1d(t_mag, inside))))
+    return max([s for s in STRIDES if segments_per_s / s >= MIN_NODE_RATE_HZ], default=STRIDES[0])
 
 
 def linearise(prep: Prepared, grid: Grid, options: Options, search_lag: bool = True) -> Linearisation:
@@ -160,15 +164,16 @@ def problem_parameters(problem: JointProblem, prep: Prepared, lin: Linearisation
     return problem.parameters(lin, s.mag, sigma_mag, prep.gyro_density, s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, tau0_s)
 
 
-def magnetometer_noise_factor(problem: JointProblem, x, p) -> float:
+def magnetometer_noise_factor(problem: JointProblem, x, p, residuals: np.ndarray | None = None) -> float:
     """Ratio of the magnetometer residuals' effective scale to the assumed noise (1 when the noise model holds).
 
     Robust per-sample scale (median of |r|^2 against its chi^2 median) times
     the square root of the residuals' integrated autocorrelation time, so
     correlated model error (a field not quite homogeneous) counts as what it
-    is: fewer independent samples.
+    is: fewer independent samples. `residuals`: residual_matrix(problem, x, p) when the caller has it.
     """
-    r = magnetometer_residuals(residual_matrix(problem, x, p), problem.grid.stride)[problem.grid.sample_mask]
+    residuals = residual_matrix(problem, x, p) if residuals is None else residuals
+    r = magnetometer_residuals(residuals, problem.grid.stride)[problem.grid.sample_mask]
     scale = np.sqrt(np.median(np.sum(r**2, axis=1)) / CHI2_3DOF_MEDIAN)
     return float(scale * np.sqrt(noise.integrated_autocorrelation_time(r)))
 
@@ -200,6 +205,13 @@ class Solution:
     stats: dict
     passes: int
     seconds: float
+    residuals: np.ndarray | None = None   # residual_matrix at (x, p), when the last pass computed it
+    p_casadi: ca.DM | None = None          # p as a DM: converted once, not on every Function call (0.9 s at 360k samples)
+
+    @property
+    def p_call(self):
+        """p to pass to the problem's Functions."""
+        return self.p if self.p_casadi is None else self.p_casadi
 
 
 def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, method: NLS) -> Solution:
@@ -210,18 +222,20 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
     seconds, iterations = 0.0, 0
     for n_pass in range(1, MAX_PASSES + 1):
         p = problem_parameters(problem, prep, lin, sigma_mag, tau0)
+        p_dm = ca.DM(p)   # one numpy -> DM conversion for the solver and the residuals (8.5M numbers at 360k samples)
         t0 = time.perf_counter()
-        x = np.array(solver(x0=x, p=p)["x"]).ravel()
+        x = np.array(solver(x0=x, p=p_dm)["x"]).ravel()
         seconds += time.perf_counter() - t0
         stats = dict(solver.stats())
         iterations += int(stats["iter_count"])
         stats["iter_count"] = iterations
         tau = float(problem.physical_function(x[: problem.n_theta], p[: problem.n_glob_p])[5].full().item())
-        factor = magnetometer_noise_factor(problem, x, p) if method.reweight_noise else 1.0
+        r = residual_matrix(problem, x, p_dm) if method.reweight_noise else None   # kept for the fit statistics
+        factor = magnetometer_noise_factor(problem, x, p, r) if method.reweight_noise else 1.0
         moved = abs(tau - tau0) * max(abs(tau), abs(tau0)) > TIME_OFFSET_RELOOK_S2
         reweight = abs(factor - 1.0) > NOISE_RESCALE_TOLERANCE
         if n_pass == MAX_PASSES or not (moved or reweight):
-            return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds)
+            return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, r, p_dm)
         if moved and problem.n_theta > N_GLOBAL:
             x[N_GLOBAL] += (tau0 - tau) / TIME_OFFSET_SCALE_S  # same tau, now about the new tau0
             tau0 = tau

@@ -32,7 +32,7 @@ from magyro.front import ellipsoid
 from magyro.front.prepare import Prepared, moving_session, prepare
 from magyro.nls.information import predicted_std_and_disturbance
 from magyro.nls.method import NLS
-from magyro.nls.solve import NODE_RATE_HZ, default_stride
+from magyro.nls.solve import default_stride
 from magyro.observability.advice import weak_directions
 from magyro.observability.gate import (WELL_CONDITIONED, accuracy_shortfalls, accuracy_summary, ObservabilityAnalysis, cumulative_noise_matrix,
                                        directional_rank)
@@ -45,7 +45,6 @@ from magyro.result.reported import plausible_gyro
 from magyro.session import Session
 
 CHECKPOINTS = 200                 # cumulative integral evaluated at this many times
-PREDICTION_NODE_RATE_HZ = NODE_RATE_HZ   # the solve's node rate: the prediction uses the solve's compiled kernels
 
 
 def observe(session: Session, options: Options | None = None, targets: Targets | None = None,
@@ -55,7 +54,7 @@ def observe(session: Session, options: Options | None = None, targets: Targets |
     `options` gives the noise levels (None: estimated from the data) and the rest
     trimming of `magyro solve`; `targets` the accuracy the verdict asks for;
     `method` the least squares whose accuracy is predicted: its `stride` is the
-    node stride of the prediction (None: nodes at `PREDICTION_NODE_RATE_HZ`).
+    node stride of the prediction (None: the solve's, `default_stride`).
     Raises InputError for unusable input.
     """
     options = options or Options()
@@ -197,8 +196,8 @@ def coverage(t_gyro_s, rates_rad_s, field_m, rate_reference: str) -> Coverage:
 
 
 def prediction_stride(session: Session, method: NLS) -> int:
-    """The method's node stride, or nodes at `PREDICTION_NODE_RATE_HZ` when it leaves it open."""
-    return int(method.stride or default_stride(session, PREDICTION_NODE_RATE_HZ))
+    """The method's node stride, or the solve's when it leaves it open: the two share their kernels."""
+    return int(method.stride or default_stride(session))
 
 
 def predict(prep: Prepared | None, analysis: ObservabilityAnalysis, options: Options,

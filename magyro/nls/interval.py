@@ -1,0 +1,212 @@
+"""One interval of the joint least squares as CasADi SX kernels: the code every compiled kernel is made of.
+
+An interval runs from attitude node k to node k+1 over `stride` segments, each of `L` gyro sub-steps
+(grid.py). Its residuals, whitened:
+
+    magnetometer  (y_m - h - R^-1 C_i^m(t_j - tau) m^i) * w_mag * w_seg    raw units, one per segment start;
+                  C_i^m(t - tau) = Exp(tau w(t - tau0/2)) C_i^m(t); Huber's loss through `huber_scaled`, its
+                  threshold a parameter (NO_HUBER: none); w_seg 0 where a segment starts at no sample
+    gyro          Winv vee(E - E^T)/2 / sqrt(T_n)     E: mismatch of the integrated gyro against the node attitudes
+    walk          the moving hard iron's step, when it walks
+
+Each sub-step rotates by (w_a + w_b)/2 dt + dt^2/12 (w_a x w_b), w = K y_g + eps. `interval_kernels` gives the
+residuals, their sum of squares with its gradient, and the Gauss-Newton blocks; `kernel_set` the compiled
+ones. This module alone (with kernels.py) determines the compiled code: its source is in the kernels'
+cache key (kernels.cache_digest), so a change anywhere else compiles nothing.
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from magyro.nls.kernels import compile_kernels, load_cached_kernel
+
+N_GLOBAL = 23          # calibration corrections without the time offset; 24 with it
+GLOBAL_SLICES = {"U": slice(0, 6), "dh": slice(6, 9), "dK": slice(9, 18), "deps": slice(18, 21), "dm": slice(21, 23), "dtau": slice(23, 24)}
+TIME_OFFSET_SCALE_S = 0.01
+UPPER_INDEX = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+GLOBAL_LAYOUT = [("S0", 9), ("h0", 3), ("K0", 9), ("eps0", 3), ("m0", 3), ("B", 6), ("field_scale", 1), ("Winv", 9), ("w_mag", 1), ("tau0", 1),
+                 ("huber", 1)]
+NO_HUBER = 1e30   # the Huber threshold (noise sigmas) of the plain least squares: no residual reaches it
+
+
+# ------------------------------------------------------------- SX building blocks
+def quat_exp(phi):
+    """Quaternion [w, x, y, z] of Exp(phi); smooth at zero (series branch, safe argument)."""
+    th2 = ca.dot(phi, phi)
+    small = th2 < 1e-6
+    th_safe = ca.sqrt(ca.if_else(small, 1.0, th2))
+    c = ca.if_else(small, 1.0 - th2 / 8.0 + th2 * th2 / 384.0, ca.cos(th_safe / 2.0))
+    s = ca.if_else(small, 0.5 - th2 / 48.0 + th2 * th2 / 3840.0, ca.sin(th_safe / 2.0) / th_safe)
+    return ca.vertcat(c, s * phi)
+
+
+def quat_mul(a, b):
+    aw, av = a[0], a[1:]
+    bw, bv = b[0], b[1:]
+    return ca.vertcat(aw * bw - ca.dot(av, bv), aw * bv + bw * av + ca.cross(av, bv))
+
+
+def quat_conj(q):
+    return ca.vertcat(q[0], -q[1:])
+
+
+def rotate_inverse(q, v):
+    """R(q)^T v."""
+    u = q[1:]
+    c = ca.cross(u, v)
+    return v - 2 * q[0] * c + 2 * ca.cross(u, c)
+
+
+def unpack_globals(theta, g):
+    """Physical parameters (S = R^-1, h, K, eps, m^i) from corrections and the linearisation."""
+    o = 0
+    parts = {}
+    for name, n in GLOBAL_LAYOUT:
+        parts[name] = g[o : o + n]
+        o += n
+    S0 = ca.reshape(parts["S0"], 3, 3)
+    U = theta[GLOBAL_SLICES["U"]]
+    Umat = ca.SX.zeros(3, 3) if isinstance(theta, ca.SX) else ca.MX.zeros(3, 3)
+    for i, (r, c) in enumerate(UPPER_INDEX):
+        Umat[r, c] = U[i]
+    S = ca.mtimes(S0, ca.DM.eye(3) + Umat)
+    h = parts["h0"] + parts["field_scale"] * theta[GLOBAL_SLICES["dh"]]
+    K = ca.reshape(parts["K0"], 3, 3) + ca.reshape(theta[GLOBAL_SLICES["dK"]], 3, 3)
+    eps = parts["eps0"] + theta[GLOBAL_SLICES["deps"]]
+    m_raw = parts["m0"] + ca.mtimes(ca.reshape(parts["B"], 3, 2), theta[GLOBAL_SLICES["dm"]])
+    m_i = m_raw / ca.norm_2(m_raw)
+    tau = parts["tau0"] + (TIME_OFFSET_SCALE_S * theta[GLOBAL_SLICES["dtau"]] if theta.shape[0] > N_GLOBAL else 0)
+    return S, h, K, eps, m_i, tau, ca.reshape(parts["Winv"], 3, 3), parts["w_mag"], parts["huber"]
+
+
+def data_layout(stride: int, L: int, walk: bool = False) -> list[tuple[str, int]]:
+    return [("Cbar", 9), ("qD", 4), ("w_int", 1), ("ymag", 3 * stride), ("wseg", stride), ("ymid", 3 * stride),
+            ("dt", stride * L), ("ya", 3 * stride * L), ("yb", 3 * stride * L)] + ([("w_walk", 1)] if walk else [])
+
+
+def global_part(g, name: str):
+    """The entry `name` of the global parameter vector g (GLOBAL_LAYOUT)."""
+    o = 0
+    for entry, n in GLOBAL_LAYOUT:
+        if entry == name:
+            return g[o : o + n]
+        o += n
+    raise KeyError(name)
+
+
+def global_number(p: np.ndarray, name: str) -> float:
+    """The one-number global `name` (e.g. w_mag = 1 / sigma_mag, field_scale) of a numeric parameter vector."""
+    return float(np.asarray(global_part(p, name)).item())
+
+
+def huber_scaled(r, threshold):
+    """r scaled so that |r|^2 / 2 becomes Huber's rho(|r|): quadratic inside `threshold`, linear outside.
+    A parameter, not a constant of the kernel, so the plain least squares (threshold NO_HUBER) and Huber's
+    share their compiled code."""
+    n = ca.norm_2(r)
+    outside = n > threshold
+    n_safe = ca.if_else(outside, n, 2.0 * threshold)
+    return r * ca.if_else(outside, ca.sqrt(threshold * (2.0 * n_safe - threshold)) / n_safe, 1.0)
+
+
+def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool = False):
+    """Whitened residuals of one interval: `stride` magnetometer samples, then the gyro mismatch, then (with a
+    moving hard iron, `walk`) its random-walk step. A node's state s is phi (3), then eta (3) when `walk`:
+    the hard iron over the interval from the node is h + field_scale * eta_k."""
+    S, h, K, eps, m_i, tau, Winv, w_mag, huber = unpack_globals(theta, g)
+    phi_k, phi_k1 = s_k[:3], s_k1[:3]
+    if walk:
+        h = h + global_part(g, "field_scale") * s_k[3:6]
+    o = 0
+    parts = {}
+    for name, n in data_layout(stride, L, walk):
+        parts[name] = d[o : o + n]
+        o += n
+    Cbar = ca.reshape(parts["Cbar"], 3, 3)
+    q_k = quat_exp(phi_k)
+    n_k = rotate_inverse(q_k, ca.mtimes(Cbar.T, m_i))  # C_i^m(tau_k) m^i
+    Q = ca.DM([1, 0, 0, 0])
+    res = []
+    for i in range(stride):
+        v = rotate_inverse(Q, n_k)  # C_i^m(t_j) m^i at the stamp; then back by the time offset
+        w_mid = ca.mtimes(K, parts["ymid"][3 * i : 3 * i + 3]) + eps
+        v = rotate_inverse(quat_conj(quat_exp(tau * w_mid)), v)
+        r_mag = (parts["ymag"][3 * i : 3 * i + 3] - ca.mtimes(S, v) - h) * (w_mag * parts["wseg"][i])
+        res.append(huber_scaled(r_mag, huber))
+        for l in range(L):
+            j = i * L + l
+            dt = parts["dt"][j]
+            wa = ca.mtimes(K, parts["ya"][3 * j : 3 * j + 3]) + eps
+            wb = ca.mtimes(K, parts["yb"][3 * j : 3 * j + 3]) + eps
+            Q = quat_mul(Q, quat_exp(0.5 * (wa + wb) * dt + (dt * dt / 12.0) * ca.cross(wa, wb)))
+    qE = quat_mul(quat_mul(quat_mul(quat_conj(Q), quat_conj(q_k)), parts["qD"]), quat_exp(phi_k1))
+    res.append(ca.mtimes(Winv, 2.0 * qE[0] * qE[1:]) * parts["w_int"])
+    if walk:
+        res.append((s_k1[3:6] - s_k[3:6]) * parts["w_walk"])
+    return ca.vertcat(*res)
+
+
+KERNEL_NAMES = ("interval_residuals", "interval_gradient", "interval_gauss_newton")
+
+
+def interval_kernels(n_theta: int, n_glob_p: int, n_data: int, stride: int, L: int, walk: bool = False):
+    """The three per-interval SX kernels: residuals; sum of squares and its gradient; the Gauss-Newton Hessian's
+    parts (J_theta^T, the interval's triu(J_theta^T J_theta), and its contributions to its two nodes' columns)."""
+    th = ca.SX.sym("theta", n_theta)
+    pk = ca.SX.sym("s_k", node_size(walk))
+    pk1 = ca.SX.sym("s_k1", node_size(walk))
+    g = ca.SX.sym("g", n_glob_p)
+    d = ca.SX.sym("d", n_data)
+    r = interval_residuals(th, pk, pk1, g, d, stride, L, walk)
+    JthT = ca.jacobian(r, th).T
+    Jk = ca.jacobian(r, pk)
+    Jk1 = ca.jacobian(r, pk1)
+    ssq = ca.sumsqr(r)
+    args = [th, pk, pk1, g, d]
+    return [
+        ca.Function(KERNEL_NAMES[0], args, [r]),
+        ca.Function(KERNEL_NAMES[1], args,
+                    [ssq, 0.5 * ca.gradient(ssq, th), 0.5 * ca.gradient(ssq, pk), 0.5 * ca.gradient(ssq, pk1)]),
+        ca.Function(KERNEL_NAMES[2], args,
+                    [JthT, upper_triangle(ca.mtimes(JthT, JthT.T)),
+                     node_columns(ca.mtimes(JthT, Jk), ca.SX.zeros(Jk.shape[1], Jk.shape[1]), ca.mtimes(Jk.T, Jk)),
+                     node_columns(ca.mtimes(JthT, Jk1), ca.mtimes(Jk.T, Jk1), ca.mtimes(Jk1.T, Jk1))]),
+    ]
+
+
+def upper_triangle(M):
+    """The upper triangle of a square matrix in compressed-column order (column j: rows 0..j)."""
+    return ca.vertcat(*[M[: j + 1, j] for j in range(M.shape[1])])
+
+
+def node_columns(theta_rows, previous_rows, own_rows):
+    """One interval's part of a node's columns of triu(J^T J), in compressed-column order (problem.hessian_sparsity):
+    per column c of the node the theta rows, the previous node's rows, then the node's own rows 0..c. For the
+    interval's first node (k) the previous node's rows are zero (interval k-1 holds them); for its second
+    (k+1) they are the coupling J_k^T J_k+1."""
+    return ca.vertcat(*[ca.vertcat(theta_rows[:, c], previous_rows[:, c], own_rows[: c + 1, c])
+                        for c in range(own_rows.shape[1])])
+
+
+def kernel_key(stride: int, L: int, n_theta: int, walk: bool) -> str:
+    """What determines the kernels completely (with the source of this module, see kernels.cache_digest)."""
+    return f"stride={stride} substeps={L} theta={n_theta}" + (" walk" if walk else "")
+
+
+def kernel_set(stride: int, L: int, n_theta: int, walk: bool, compiled: bool = True) -> list[ca.Function]:
+    """The three interval kernels of a shape: compiled (installed with magyro, cached, or compiled now) when
+    `compiled`, else the interpreted SX functions."""
+    key = kernel_key(stride, L, n_theta, walk)
+    cached = [load_cached_kernel(name, key) for name in KERNEL_NAMES] if compiled else [None]
+    if all(k is not None for k in cached):  # compiled before: no symbolic build needed
+        return cached
+    n_glob_p = sum(k for _, k in GLOBAL_LAYOUT)
+    n_data = sum(k for _, k in data_layout(stride, L, walk))
+    kernels = interval_kernels(n_theta, n_glob_p, n_data, stride, L, walk)
+    return compile_kernels(kernels, key) if compiled else kernels
+
+
+def node_size(walk: bool) -> int:
+    """Unknowns per node: the attitude correction phi (3), and the hard iron's walk eta (3) when it moves."""
+    return 6 if walk else 3
