@@ -194,7 +194,7 @@ def verdict(row: dict | None, key: str, limit: float, unit: str) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", default="10000,100000,360000,3600000", help="comma-separated sample counts")
+    parser.add_argument("--sizes", default="10000,36000,100000,360000,3600000", help="comma-separated sample counts")
     parser.add_argument("--repeat", type=int, default=1, help="solves per size (medians reported)")
     parser.add_argument("--timeout", type=float, default=900.0, help="seconds per solve before it is killed")
     parser.add_argument("--out", type=Path, help="also write the raw numbers here as JSON")
