@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import magyro
-from magyro.nls.disturbance import exponential_double_sum
+from magyro.nls.disturbance import ExponentialDoubleSum, exponential_double_sum
 from magyro.result.reported import misalignment_vector
 from magyro.studies.scenario import load_problem
 from magyro.studies.simulate import simulate, with_field_disturbance
@@ -34,6 +34,28 @@ def test_exponential_double_sum_is_the_dense_double_sum():
     T = 0.7
     rho = np.exp(-np.abs(t[:, None] - t[None, :]) / T)
     dense = np.einsum("jk,jac,kbc->ab", rho, U, U)
+    np.testing.assert_allclose(exponential_double_sum(U, t, T), dense, rtol=1e-10)
+
+
+def test_the_double_sum_in_pieces_is_the_dense_double_sum():
+    """The solve sums the sensitivities a piece of intervals at a time (memory O(piece)): pieces that cut a 10 ms
+    bin in two, a piece of one sample and a recording much longer than the correlation time (several
+    vectorised blocks) give the dense sum; with 3 ms samples, three share a bin, as BROAD's do."""
+    rng = np.random.default_rng(1)
+    t = np.cumsum(rng.uniform(0.001, 0.005, 3000))
+    U = rng.normal(size=(3000, 4, 3))
+    T = 0.2                                             # 9 s of samples: 45 correlation times
+    bins = np.floor((t - t[0]) / ExponentialDoubleSum.BIN_S).astype(int)
+    V = np.add.reduceat(U, np.flatnonzero(np.r_[True, np.diff(bins) > 0]), axis=0)
+    t_b = t[np.flatnonzero(np.r_[True, np.diff(bins) > 0])]
+    rho = np.exp(-np.abs(t_b[:, None] - t_b[None, :]) / T)
+    dense = np.einsum("jk,jac,kbc->ab", rho, V, V)
+    cuts = [0, 1, 2, 700, 701, 1500, 2999, 3000]
+    assert len(set(bins[[699, 700]])) == 1 or len(set(bins[[1499, 1500]])) == 1   # a cut inside a bin
+    total = ExponentialDoubleSum(T)
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        total.add(U[a:b], t[a:b])
+    np.testing.assert_allclose(total.result(), dense, rtol=1e-10)
     np.testing.assert_allclose(exponential_double_sum(U, t, T), dense, rtol=1e-10)
 
 

@@ -64,8 +64,8 @@ def disturbance_covariance(problem: JointProblem, x: np.ndarray, p: np.ndarray, 
     found = measured_disturbance(problem, theta, g, info_inv, session)
     if found.std_fraction == 0.0:
         return info_inv, found
-    U, t_s = disturbance_sensitivities(problem, x, p, reduced, C_m_i_nodes, session, S, m_i.ravel(), float(tau.item()))
-    omega = found.std_fraction**2 * exponential_double_sum(U, t_s, found.correlation_time_s)
+    omega = found.std_fraction**2 * disturbance_information(problem, x, p, reduced, C_m_i_nodes, session, S,
+                                                             m_i.ravel(), float(tau.item()), found.correlation_time_s)
     return info_inv + info_inv @ omega @ info_inv, found
 
 
@@ -112,51 +112,138 @@ def magnitude_and_gradient(problem: JointProblem, theta, g, mag: np.ndarray, ste
 # --------------------------------------------------------------------------- its effect on the estimate
 
 
+SENSITIVITY_CHUNK = 1024   # intervals per piece of the sensitivities: their memory is a piece's, not the session's
+
+
+def disturbance_information(problem: JointProblem, x, p, reduced: Reduced, C_m_i_nodes: np.ndarray,
+                            session: Session, S: np.ndarray, m_i: np.ndarray, tau_s: float,
+                            correlation_s: float) -> np.ndarray:
+    """sum_jk exp(-|t_j - t_k| / T) u_j u_k^T over the magnetometer samples that carry a residual, the
+    sensitivities u_j made and summed a piece of SENSITIVITY_CHUNK intervals at a time: at 360k samples the
+    whole (n, n_theta, 3) array and the n_theta x n_res J_theta^T behind it took 1.7 GB."""
+    total = ExponentialDoubleSum(correlation_s)
+    for U, t_s in disturbance_sensitivities(problem, x, p, reduced, C_m_i_nodes, session, S, m_i, tau_s):
+        total.add(U, t_s)
+    return total.result()
+
+
 def disturbance_sensitivities(problem: JointProblem, x, p, reduced: Reduced, C_m_i_nodes: np.ndarray,
-                              session: Session, S: np.ndarray, m_i: np.ndarray, tau_s: float):
-    """(u_j (n, n_theta, 3) for the magnetometer samples that carry a residual, their times)."""
-    grid = problem.grid
+                              session: Session, S: np.ndarray, m_i: np.ndarray, tau_s: float,
+                              chunk: int = SENSITIVITY_CHUNK):
+    """Pieces, in time order, of (u_j (n, n_theta, 3) for the magnetometer samples that carry a residual, their
+    times), each from `chunk` intervals."""
+    grid, B, G = problem.grid, problem.B, problem.n_theta
     s = grid.stride
-    rows = magnetometer_rows(problem, x, p)                                   # (n_int, 3s, n_theta)
-    t_seg = session.t_mag_s[grid.mag_index]                                   # (n_int, s)
-    A = np.swapaxes(so3.interpolate(grid.t_node_s, C_m_i_nodes, (t_seg - tau_s).ravel()), -1, -2)   # C_i^m per sample
-    w = grid.mag_weight.ravel() * global_number(p, "w_mag")
-    L = -w[:, None, None] * (S @ A)                                           # d r_j / d delta_j
-    B = problem.B
-    phi = np.vstack([np.zeros(3), x[problem.n_theta :].reshape(-1, B)[:, :3]])
-    start = C_m_i_nodes[:-1] @ so3.right_jacobian(phi[:-1])                   # C_n J_r(phi_n), node n of interval n
-    J_node = L.reshape(problem.n_int, s, 3, 3) @ (so3.skew(m_i) @ start)[:, None]   # d r / d phi_n, (n_int, s, 3, 3)
-    if problem.walk:   # d r / d eta_n = -w field_scale I
-        field_scale = global_number(p, "field_scale")
-        J_eta = -(w * field_scale).reshape(problem.n_int, s, 1, 1) * np.eye(3)
-        J_node = np.concatenate([J_node, J_eta], axis=-1)                     # (n_int, s, 3, 6)
-    W = np.concatenate([np.zeros((1, B, problem.n_theta)), reduced.Dinv_Hpt.reshape(problem.n_int, B, -1)[:-1]])
-    J_profiled = rows.reshape(problem.n_int, s, 3, -1) - J_node @ W[:, None]  # (n_int, s, 3, n_theta)
-    U = np.einsum("nsra,nsrc->nsac", J_profiled, L.reshape(problem.n_int, s, 3, 3)).reshape(-1, problem.n_theta, 3)
-    carries = grid.mag_weight.ravel() > 0
-    return U[carries], t_seg.ravel()[carries]
+    states = np.vstack([np.zeros(B), x[G:].reshape(-1, B)])                  # node 0 (fixed) .. n_int
+    W = np.concatenate([np.zeros((1, B, G)), reduced.Dinv_Hpt.reshape(problem.n_int, B, -1)[:-1]])
+    w_mag = global_number(p, "w_mag")
+    field_scale = global_number(p, "field_scale")
+    rows_of = ThetaRows(problem, x, p)
+    for a in range(0, problem.n_int, chunk):
+        n = slice(a, min(a + chunk, problem.n_int))
+        m = n.stop - a
+        rows = rows_of(n)                                                    # (m, 3s, n_theta)
+        t_seg = session.t_mag_s[grid.mag_index[n]]                           # (m, s)
+        A = np.swapaxes(so3.interpolate(grid.t_node_s, C_m_i_nodes, (t_seg - tau_s).ravel()), -1, -2)  # C_i^m
+        w = grid.mag_weight[n].ravel() * w_mag
+        L = -w[:, None, None] * (S @ A)                                      # d r_j / d delta_j
+        start = C_m_i_nodes[n] @ so3.right_jacobian(states[n, :3])           # C_n J_r(phi_n), node n of interval n
+        J_node = L.reshape(m, s, 3, 3) @ (so3.skew(m_i) @ start)[:, None]    # d r / d phi_n, (m, s, 3, 3)
+        if problem.walk:   # d r / d eta_n = -w field_scale I
+            J_node = np.concatenate([J_node, -(w * field_scale).reshape(m, s, 1, 1) * np.eye(3)], axis=-1)
+        J_profiled = rows.reshape(m, s, 3, -1) - J_node @ W[n][:, None]     # (m, s, 3, n_theta)
+        U = (np.swapaxes(J_profiled, -1, -2) @ L.reshape(m, s, 3, 3)).reshape(-1, G, 3)
+        carries = grid.mag_weight[n].ravel() > 0
+        yield U[carries], t_seg.ravel()[carries]
 
 
-def magnetometer_rows(problem: JointProblem, x, p) -> np.ndarray:
-    """d r / d theta of every magnetometer residual, (n_int, 3 stride, n_theta), from the Gauss-Newton kernel."""
-    xs, ps, args = problem._symbols
-    JthT = problem.gn_kernel.map(problem.n_int)(*args)[0]      # n_theta x (n_res_per_interval n_int)
-    rows = np.array(ca.Function("theta_rows", [xs, ps], [JthT])(x, p))
-    rows = rows.reshape(problem.n_theta, problem.n_int, problem.n_res_per_interval)   # interval-major columns
-    return np.transpose(rows[:, :, : 3 * problem.grid.stride], (1, 2, 0))
+class ThetaRows:
+    """d r / d theta of the magnetometer residuals of a slice of intervals, (m, 3 stride, n_theta), from the
+    Gauss-Newton kernel evaluated on that slice alone."""
+
+    def __init__(self, problem: JointProblem, x, p):
+        self.problem = problem
+        self.theta = ca.DM(x[: problem.n_theta])
+        self.g = ca.DM(p[: problem.n_glob_p])
+        self.states = np.vstack([np.zeros(problem.B), x[problem.n_theta :].reshape(-1, problem.B)])
+        self.data = p[problem.n_glob_p :].reshape(problem.n_int, problem.n_data)
+        self.maps = {}
+
+    def __call__(self, n: slice) -> np.ndarray:
+        problem, m = self.problem, n.stop - n.start
+        if m not in self.maps:
+            self.maps[m] = problem.gn_kernel.map(m)
+        JthT = self.maps[m](self.theta, ca.DM(self.states[n].T), ca.DM(self.states[n.start + 1 : n.stop + 1].T),
+                            self.g, ca.DM(self.data[n].T))[0]
+        rows = np.array(JthT).reshape(problem.n_theta, m, problem.n_res_per_interval)   # interval-major columns
+        return np.transpose(rows[:, :, : 3 * problem.grid.stride], (1, 2, 0))
+
+
+class ExponentialDoubleSum:
+    """sum_jk exp(-|t_j - t_k| / T) U_j U_k^T for U (n, a, c) given in pieces in time order, in O(n a c) by a
+    recursion over the samples binned to 10 ms (the kernel is flat over that when T >= 0.2 s)."""
+
+    BIN_S = 0.01
+    BLOCK_T = 30.0   # correlation times per vectorised block: exp(30) keeps the scaled sums well inside doubles
+
+    def __init__(self, correlation_s: float):
+        self.correlation_s = correlation_s
+        self.t0_s = None
+        self.acc = None          # the recursion's state after the last bin run
+        self.t_last_s = None
+        self.cross = 0.0         # sum_k acc_k V_k^T
+        self.square = 0.0        # sum_k V_k V_k^T
+        self.pending = None      # (bin, its first time, V) of the last bin seen: the next piece may add to it
+
+    def add(self, U: np.ndarray, t_s: np.ndarray) -> None:
+        if len(U) == 0:
+            return
+        if self.t0_s is None:
+            self.t0_s = float(t_s[0])
+        bins = np.floor((t_s - self.t0_s) / self.BIN_S).astype(int)
+        starts = np.flatnonzero(np.r_[True, np.diff(bins) > 0])
+        V, b, t_b = np.add.reduceat(U, starts, axis=0), bins[starts], t_s[starts].astype(float)
+        if self.pending is not None:
+            bin_, t_first, V_pending = self.pending
+            if b[0] == bin_:
+                V[0] += V_pending
+                t_b[0] = t_first
+            else:
+                self.run(V_pending[None], np.array([t_first]))
+        self.pending = (b[-1], t_b[-1], V[-1].copy())
+        self.run(V[:-1], t_b[:-1])
+
+    def run(self, V: np.ndarray, t_b: np.ndarray) -> None:
+        """The recursion acc_k = exp(-(t_k - t_k-1) / T) acc_k-1 + V_k over bins, vectorised in blocks of at
+        most BLOCK_T correlation times: acc_k = exp(-s_k) (carry + sum_j<=k exp(s_j) V_j), s = (t - t_0) / T."""
+        T = self.correlation_s
+        k0 = 0
+        while k0 < len(V):
+            t0 = t_b[k0]
+            k1 = max(int(np.searchsorted(t_b, t0 + self.BLOCK_T * T, side="right")), k0 + 1)
+            scaled = (t_b[k0:k1] - t0) / T
+            carry = 0.0 if self.acc is None else np.exp(-(t0 - self.t_last_s) / T) * self.acc
+            block = V[k0:k1]
+            acc = np.exp(-scaled)[:, None, None] * (carry + np.cumsum(np.exp(scaled)[:, None, None] * block, axis=0))
+            self.cross = self.cross + pair_sum(acc, block)
+            self.square = self.square + pair_sum(block, block)
+            self.acc, self.t_last_s = acc[-1], t_b[k1 - 1]
+            k0 = k1
+
+    def result(self) -> np.ndarray:
+        if self.pending is not None:
+            self.run(self.pending[2][None], np.array([self.pending[1]]))
+            self.pending = None
+        return self.cross + np.transpose(self.cross) - self.square
+
+
+def pair_sum(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """sum_k X_k Y_k^T for X (n, a, c), Y (n, b, c), as one matrix product (einsum took 3 s at 360k samples)."""
+    return np.swapaxes(X, 0, 1).reshape(X.shape[1], -1) @ np.swapaxes(Y, 0, 1).reshape(Y.shape[1], -1).T
 
 
 def exponential_double_sum(U: np.ndarray, t_s: np.ndarray, correlation_s: float) -> np.ndarray:
-    """sum_jk exp(-|t_j - t_k| / T) U_j U_k^T for U (n, a, c) in time order, in O(n a c) by a recursion
-    over the samples binned to 10 ms (the kernel is flat over that when T >= 0.2 s)."""
-    bins = np.floor((t_s - t_s[0]) / 0.01).astype(int)
-    starts = np.flatnonzero(np.r_[True, np.diff(bins) > 0])
-    V = np.add.reduceat(U, starts, axis=0)
-    t_b = t_s[starts]
-    decay = np.exp(-np.diff(t_b) / correlation_s)
-    acc = np.empty_like(V)
-    acc[0] = V[0]
-    for k in range(1, len(V)):
-        acc[k] = decay[k - 1] * acc[k - 1] + V[k]
-    cross = np.einsum("kac,kbc->ab", acc, V)
-    return cross + cross.T - np.einsum("kac,kbc->ab", V, V)
+    """sum_jk exp(-|t_j - t_k| / T) U_j U_k^T for U (n, a, c) in time order (`ExponentialDoubleSum` in one piece)."""
+    total = ExponentialDoubleSum(correlation_s)
+    total.add(U, t_s)
+    return total.result()
