@@ -2,6 +2,7 @@
 solver kernels into the package being installed (magyro/nls/installed.py), so that the first solve
 on a machine compiles nothing. Without a C compiler, or if it fails, the install goes on and the
 first solve compiles (or interprets) the kernels instead."""
+import shutil
 import sys
 from pathlib import Path
 
@@ -16,6 +17,7 @@ class BuildWithKernels(build_py):
         if getattr(self, "editable_mode", False):   # an editable install compiles on first use, into the cache
             return
         target = Path(self.build_lib) / "magyro" / "nls" / "installed_kernels"
+        shutil.rmtree(target, ignore_errors=True)   # a reused build folder keeps earlier builds' kernels: ship today's only
         sys.path.insert(0, str(Path(__file__).resolve().parent))
         try:
             from magyro.nls.installed import install_kernels
