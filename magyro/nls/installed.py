@@ -12,14 +12,12 @@ from pathlib import Path
 
 from magyro.nls.grid import STRIDES
 from magyro.nls.kernels import build_libraries, find_compiler, generate_c, library_name
-from magyro.nls.interval import GLOBAL_LAYOUT, N_GLOBAL, data_layout, interval_kernels, kernel_key
-
-INSTALLED_STRIDES = STRIDES
+from magyro.nls.interval import N_GLOBAL, interval_kernels, kernel_key
 
 
 def installed_shapes() -> list[tuple[int, int, int, bool]]:
     """(stride, sub-steps, theta size, moving hard iron) of each installed kernel set (`kernel_key`'s arguments)."""
-    return [(stride, 1, N_GLOBAL + 1, False) for stride in INSTALLED_STRIDES]
+    return [(stride, 1, N_GLOBAL + 1, False) for stride in STRIDES]
 
 
 def install_kernels(folder: Path) -> list[Path]:
@@ -29,10 +27,8 @@ def install_kernels(folder: Path) -> list[Path]:
         return []
     folder = Path(folder)
     jobs = []
-    for stride, L, n_theta, walk in installed_shapes():
-        key = kernel_key(stride, L, n_theta, walk)
-        fns = interval_kernels(n_theta, sum(k for _, k in GLOBAL_LAYOUT), sum(k for _, k in data_layout(stride, L, walk)),
-                               stride, L, walk)
-        jobs += [(generate_c(fn), folder / library_name(fn.name(), key)) for fn in fns]
+    for shape in installed_shapes():
+        key = kernel_key(*shape)
+        jobs += [(generate_c(fn), folder / library_name(fn.name(), key)) for fn in interval_kernels(*shape)]
     built = build_libraries(jobs)
     return [lib for (_, lib), ok in zip(jobs, built) if ok]

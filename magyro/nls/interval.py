@@ -150,14 +150,15 @@ def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool =
 KERNEL_NAMES = ("interval_residuals", "interval_gradient", "interval_gauss_newton")
 
 
-def interval_kernels(n_theta: int, n_glob_p: int, n_data: int, stride: int, L: int, walk: bool = False):
-    """The three per-interval SX kernels: residuals; sum of squares and its gradient; the Gauss-Newton Hessian's
-    parts (J_theta^T, the interval's triu(J_theta^T J_theta), and its contributions to its two nodes' columns)."""
+def interval_kernels(stride: int, L: int, n_theta: int, walk: bool = False):
+    """The three per-interval SX kernels of a shape (`kernel_key`'s arguments): residuals; sum of squares and its
+    gradient; the Gauss-Newton Hessian's parts (J_theta^T, the interval's triu(J_theta^T J_theta), and its
+    contributions to its two nodes' columns)."""
     th = ca.SX.sym("theta", n_theta)
     pk = ca.SX.sym("s_k", node_size(walk))
     pk1 = ca.SX.sym("s_k1", node_size(walk))
-    g = ca.SX.sym("g", n_glob_p)
-    d = ca.SX.sym("d", n_data)
+    g = ca.SX.sym("g", sum(k for _, k in GLOBAL_LAYOUT))
+    d = ca.SX.sym("d", sum(k for _, k in data_layout(stride, L, walk)))
     r = interval_residuals(th, pk, pk1, g, d, stride, L, walk)
     JthT = ca.jacobian(r, th).T
     Jk = ca.jacobian(r, pk)
@@ -201,9 +202,7 @@ def kernel_set(stride: int, L: int, n_theta: int, walk: bool, compiled: bool = T
     cached = [load_cached_kernel(name, key) for name in KERNEL_NAMES] if compiled else [None]
     if all(k is not None for k in cached):  # compiled before: no symbolic build needed
         return cached
-    n_glob_p = sum(k for _, k in GLOBAL_LAYOUT)
-    n_data = sum(k for _, k in data_layout(stride, L, walk))
-    kernels = interval_kernels(n_theta, n_glob_p, n_data, stride, L, walk)
+    kernels = interval_kernels(stride, L, n_theta, walk)
     return compile_kernels(kernels, key) if compiled else kernels
 
 

@@ -47,7 +47,13 @@ def find_compiler() -> str | None:
 
 
 def compile_kernels(fns: list[ca.Function], key: str) -> list[ca.Function]:
-    """`compile_kernel` for several kernels of one shape, their compilers run side by side."""
+    """The kernels of one shape as compiled external functions (installed, cached, or compiled now, the
+    compilers side by side), each the SX function itself where compiling is not possible.
+
+    `key` must determine the kernels completely (their shape parameters); the library files are named by
+    it, by the source of the modules that build kernels and by the CasADi version, so C code is generated
+    only on a cache miss.
+    """
     if not jit_enabled():
         return list(fns)
     libs = [existing_library(fn.name(), key) or library_path(fn.name(), key) for fn in fns]
@@ -63,21 +69,6 @@ def say_compiling(count: int, key: str) -> None:
     if sys.stderr.isatty():
         print(f"magyro: compiling {count} solver kernels for this session's shape ({key}); once per machine "
               "and shape, some seconds", file=sys.stderr, flush=True)
-
-
-def compile_kernel(fn: ca.Function, key: str) -> ca.Function:
-    """`fn` as a compiled external function (cached), or `fn` itself when compiling is not possible.
-
-    `key` must determine the kernel completely (its shape parameters); the
-    cache file is named by it, by the source of the modules that build kernels
-    and by the CasADi version, so C code is generated only on a cache miss.
-    """
-    if not jit_enabled():
-        return fn
-    lib = existing_library(fn.name(), key) or library_path(fn.name(), key)
-    if not lib.exists() and not build_library(generate_c(fn), lib):
-        return fn
-    return ca.external(fn.name(), str(lib))
 
 
 def library_name(name: str, key: str) -> str:
@@ -118,11 +109,6 @@ def generate_c(fn: ca.Function) -> bytes:
         cg.add(fn)
         cg.generate(tmp + os.sep)
         return Path(tmp, c_name).read_bytes()
-
-
-def build_library(source: bytes, lib: Path) -> bool:
-    """Compile C source into `lib` atomically; False when the compiler fails."""
-    return build_libraries([(source, lib)])[0]
 
 
 def build_libraries(jobs: list[tuple[bytes, Path]]) -> list[bool]:
