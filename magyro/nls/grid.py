@@ -113,10 +113,23 @@ def bridge_points(t: np.ndarray, dt: np.ndarray, long: np.ndarray, typical: floa
     return snapped[keep], gap[keep]
 
 
+def usable_magnetometer(t_gyro_s, t_mag_s) -> np.ndarray:
+    """Indices of the magnetometer samples inside the gyro's span: the only ones the grid can place."""
+    return np.flatnonzero((t_mag_s >= t_gyro_s[0]) & (t_mag_s <= t_gyro_s[-1]))
+
+
+def typical_segment_s(t_gyro_s, t_mag_s) -> float | None:
+    """The median length of the grid's segments (`segment_starts`); None with fewer than two usable samples."""
+    usable = usable_magnetometer(t_gyro_s, t_mag_s)
+    if len(usable) < 2:
+        return None
+    return float(np.median(np.diff(segment_starts(t_mag_s, usable, t_gyro_s)[0])))
+
+
 def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
     """Nodes on every `stride`-th segment boundary (`segment_starts`: magnetometer samples and gyro times)
     inside the gyro's span."""
-    usable = np.flatnonzero((t_mag_s >= t_gyro_s[0]) & (t_mag_s <= t_gyro_s[-1]))
+    usable = usable_magnetometer(t_gyro_s, t_mag_s)
     holes = hole_spans_s(t_gyro_s)
     t_bound, idx_bound, on_sample = segment_starts(t_mag_s, usable, t_gyro_s)
     n_int = (len(t_bound) - 1) // stride

@@ -45,8 +45,8 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     step(f"solving the least squares ({problem.n_x} unknowns, IPOPT)")
     sol = solve_passes(problem, prep, lin, method)
     step("the uncertainty: information and the room's field")
-    reduced = reduce_hessian(problem.hessian_function(sol.x, sol.p_call), problem.n_theta, problem.B)
-    decrement = gauss_newton_decrement(reduced, np.array(problem.gradient_function(sol.x, sol.p_call)).ravel())
+    reduced = reduce_hessian(problem.hessian_function(sol.x, sol.p_casadi), problem.n_theta, problem.B)
+    decrement = gauss_newton_decrement(reduced, np.array(problem.gradient_function(sol.x, sol.p_casadi)).ravel())
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT) and not prep.analysis.full_rank:
         raise ObservabilityError(   # forced past the gate, and the data indeed do not pin a solution down
             f"--force cannot help the least squares here: the motion excites only {prep.analysis.rank} of the 12 gyro "

@@ -19,7 +19,7 @@ from magyro import so3
 from magyro.front import noise
 from magyro.front.initial import linear_gyro_estimate, with_time_offset
 from magyro.front.prepare import Prepared
-from magyro.nls.grid import STRIDES, Grid, build_grid
+from magyro.nls.grid import STRIDES, Grid, build_grid, typical_segment_s
 from magyro.nls.method import NLS
 from magyro.options import Options
 from magyro.observability.gate import unexcited_directions
@@ -107,12 +107,10 @@ def default_stride(session: Session) -> int:
     of IPOPT's linear algebra. The choice is from a fixed set so that the kernels, which depend on the
     stride only, are few and installed with magyro: 12 at 100-1000 Hz (BROAD's 285.7 Hz, a phone's 200 Hz
     gyro with a 50 Hz magnetometer), 4 below 96 Hz."""
-    t_mag = session.t_mag_s[(session.t_mag_s >= session.t_gyro_s[0]) & (session.t_mag_s <= session.t_gyro_s[-1])]
-    if len(t_mag) < 2:
+    segment_s = typical_segment_s(session.t_gyro_s, session.t_mag_s)
+    if segment_s is None:
         return STRIDES[0]
-    inside = session.t_gyro_s[(session.t_gyro_s > t_mag[0]) & (session.t_gyro_s < t_mag[-1])]
-    segments_per_s = 1.0 / float(np.median(np.diff(np.union1d(t_mag, inside))))
-    return max([s for s in STRIDES if segments_per_s / s >= MIN_NODE_RATE_HZ], default=STRIDES[0])
+    return max([s for s in STRIDES if 1.0 / (segment_s * s) >= MIN_NODE_RATE_HZ], default=STRIDES[0])
 
 
 def linearise(prep: Prepared, grid: Grid, options: Options, search_lag: bool = True) -> Linearisation:
@@ -164,15 +162,14 @@ def problem_parameters(problem: JointProblem, prep: Prepared, lin: Linearisation
     return problem.parameters(lin, s.mag, sigma_mag, prep.gyro_density, s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, tau0_s)
 
 
-def magnetometer_noise_factor(problem: JointProblem, x, p, residuals: np.ndarray | None = None) -> float:
+def magnetometer_noise_factor(problem: JointProblem, residuals: np.ndarray) -> float:
     """Ratio of the magnetometer residuals' effective scale to the assumed noise (1 when the noise model holds).
 
     Robust per-sample scale (median of |r|^2 against its chi^2 median) times
     the square root of the residuals' integrated autocorrelation time, so
     correlated model error (a field not quite homogeneous) counts as what it
-    is: fewer independent samples. `residuals`: residual_matrix(problem, x, p) when the caller has it.
+    is: fewer independent samples. `residuals`: `residual_matrix` at the solution.
     """
-    residuals = residual_matrix(problem, x, p) if residuals is None else residuals
     r = magnetometer_residuals(residuals, problem.grid.stride)[problem.grid.sample_mask]
     scale = np.sqrt(np.median(np.sum(r**2, axis=1)) / CHI2_3DOF_MEDIAN)
     return float(scale * np.sqrt(noise.integrated_autocorrelation_time(r)))
@@ -205,13 +202,8 @@ class Solution:
     stats: dict
     passes: int
     seconds: float
-    residuals: np.ndarray | None = None   # residual_matrix at (x, p), when the last pass computed it
-    p_casadi: ca.DM | None = None          # p as a DM: converted once, not on every Function call (0.9 s at 360k samples)
-
-    @property
-    def p_call(self):
-        """p to pass to the problem's Functions."""
-        return self.p if self.p_casadi is None else self.p_casadi
+    p_casadi: ca.DM                        # p as a DM, for the problem's Functions: converted once (0.9 s at 360k samples)
+    residuals: np.ndarray | None = None    # residual_matrix at (x, p), when the last pass computed it
 
 
 def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, method: NLS) -> Solution:
@@ -231,11 +223,11 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
         stats["iter_count"] = iterations
         tau = float(problem.physical_function(x[: problem.n_theta], p[: problem.n_glob_p])[5].full().item())
         r = residual_matrix(problem, x, p_dm) if method.reweight_noise else None   # kept for the fit statistics
-        factor = magnetometer_noise_factor(problem, x, p, r) if method.reweight_noise else 1.0
+        factor = 1.0 if r is None else magnetometer_noise_factor(problem, r)
         moved = abs(tau - tau0) * max(abs(tau), abs(tau0)) > TIME_OFFSET_RELOOK_S2
         reweight = abs(factor - 1.0) > NOISE_RESCALE_TOLERANCE
         if n_pass == MAX_PASSES or not (moved or reweight):
-            return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, r, p_dm)
+            return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, p_dm, r)
         if moved and problem.n_theta > N_GLOBAL:
             x[N_GLOBAL] += (tau0 - tau) / TIME_OFFSET_SCALE_S  # same tau, now about the new tau0
             tau0 = tau
