@@ -53,7 +53,6 @@ CASES = [
     ("e", "solve simulated-phone-module", ["solve", str(PHONE)], "calib", "after solve"),
     ("f", "solve broad-02, from the source tree", ["solve", str(BROAD)], "calib", "empty, source tree"),
 ]
-INSTALLED = {}   # "site": the folder magyro was installed into
 
 
 def install_magyro(folder: Path) -> float:
@@ -62,7 +61,6 @@ def install_magyro(folder: Path) -> float:
     subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
                     "--target", str(folder), str(REPO)], check=True, stdout=subprocess.DEVNULL)
     seconds = time.perf_counter() - start
-    INSTALLED["site"] = folder
     where = subprocess.run([sys.executable, "-c", "import magyro; print(magyro.__file__)"], capture_output=True,
                            text=True, check=True, env={**os.environ, "PYTHONPATH": str(folder)}, cwd=folder).stdout
     assert where.startswith(str(folder)), where
@@ -78,18 +76,18 @@ def cache_files(cache: Path) -> set[str]:
     return {str(p.relative_to(cache)) for p in cache.rglob("*") if p.is_file()} if cache.exists() else set()
 
 
-def run_in_cache(args: list[str], cache: Path, out: Path | None, installed: bool = True) -> dict:
-    """One magyro process (the installed copy, else the source tree's) with MAGYRO_CACHE_DIR=cache: wall
+def run_in_cache(args: list[str], cache: Path, out: Path | None, site: Path | None) -> dict:
+    """One magyro process (the copy installed in `site`, else the source tree's) with MAGYRO_CACHE_DIR=cache: wall
     seconds, peak RSS and the cache files it added."""
-    argv = ([sys.executable, "-m", "magyro"] if installed else [magyro_executable()]) + args + (["-o", str(out)] if out else [])
+    argv = ([sys.executable, "-m", "magyro"] if site else [magyro_executable()]) + args + (["-o", str(out)] if out else [])
     before = cache_files(cache)
     env = {**os.environ, "MAGYRO_CACHE_DIR": str(cache)}
-    if installed:
-        env["PYTHONPATH"] = str(INSTALLED["site"])
+    if site:
+        env["PYTHONPATH"] = str(site)
     with tempfile.TemporaryFile() as stderr:
         start = time.perf_counter()
         child = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=stderr, env=env,
-                                 cwd=INSTALLED["site"] if installed else None)   # not the checkout's magyro
+                                 cwd=site)   # outside the checkout: not the checkout's magyro
         _, status, usage = os.wait4(child.pid, 0)
         wall_s = time.perf_counter() - start
         code = os.waitstatus_to_exitcode(status)
@@ -105,13 +103,13 @@ def run_in_cache(args: list[str], cache: Path, out: Path | None, installed: bool
             "error": error}
 
 
-def one_round(folder: Path) -> list[dict]:
+def one_round(folder: Path, site: Path) -> list[dict]:
     """Every case once: its first run on its starting cache, then its second run on the same cache."""
     calib = folder / "calib.json"
     after_solve = folder / "cache_solved"
     after_solve.mkdir()      # magyro makes its cache folder only when it compiles
-    first = run_in_cache(CASES[0][2], after_solve, calib)     # (a) cold: the README's first command
-    second = run_in_cache(CASES[0][2], after_solve, calib)    # (a) warm
+    first = run_in_cache(CASES[0][2], after_solve, calib, site)     # (a) cold: the README's first command
+    second = run_in_cache(CASES[0][2], after_solve, calib, site)    # (a) warm
     rows = [{"case": CASES[0][0], "what": CASES[0][1], "cache": "empty", "first": first, "second": second}]
     for n, (key, what, args, output, start) in enumerate(CASES[1:], 1):
         cache = folder / f"cache_{n}"
@@ -120,9 +118,9 @@ def one_round(folder: Path) -> list[dict]:
         else:
             cache.mkdir()
         out = calib if output == "calib" else None
-        installed = "source tree" not in start
-        first = run_in_cache(args, cache, out, installed)
-        second = run_in_cache(args, cache, out, installed)
+        where = None if "source tree" in start else site
+        first = run_in_cache(args, cache, out, where)
+        second = run_in_cache(args, cache, out, where)
         rows.append({"case": key, "what": what, "cache": start, "first": first, "second": second})
         shutil.rmtree(cache)
     return rows
@@ -171,17 +169,17 @@ def main() -> None:
     try:
         install_s = install_magyro(site)
         print(f"pip install (no dependencies, compiles the installed kernels): {install_s:.1f} s", flush=True)
-        measure(args, rounds)
+        measure(args, rounds, site)
     finally:
         shutil.rmtree(site, ignore_errors=True)
     report(args, rounds, load_start, install_s)
 
 
-def measure(args, rounds: list) -> None:
+def measure(args, rounds: list, site: Path) -> None:
     for n in range(args.repeat):
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
-            rounds.append(one_round(Path(tmp)))
+            rounds.append(one_round(Path(tmp), site))
             print(f"round {n + 1}/{args.repeat}: {time.perf_counter() - t0:.0f} s", flush=True)
 
 

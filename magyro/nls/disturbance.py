@@ -134,11 +134,11 @@ def disturbance_sensitivities(problem: JointProblem, x, p, reduced: Reduced, C_m
     times), each from `chunk` intervals."""
     grid, B, G = problem.grid, problem.B, problem.n_theta
     s = grid.stride
-    states = np.vstack([np.zeros(B), x[G:].reshape(-1, B)])                  # node 0 (fixed) .. n_int
     W = np.concatenate([np.zeros((1, B, G)), reduced.Dinv_Hpt.reshape(problem.n_int, B, -1)[:-1]])
     w_mag = global_number(p, "w_mag")
     field_scale = global_number(p, "field_scale")
     rows_of = ThetaRows(problem, x, p)
+    states = rows_of.states                                                  # node 0 (fixed) .. n_int
     for a in range(0, problem.n_int, chunk):
         n = slice(a, min(a + chunk, problem.n_int))
         m = n.stop - a
@@ -165,7 +165,7 @@ class ThetaRows:
         self.problem = problem
         self.theta = ca.DM(x[: problem.n_theta])
         self.g = ca.DM(p[: problem.n_glob_p])
-        self.states = np.vstack([np.zeros(problem.B), x[problem.n_theta :].reshape(-1, problem.B)])
+        self.states = np.vstack([np.zeros(problem.B), x[problem.n_theta :].reshape(-1, problem.B)])   # nodes 0..n_int
         self.data = p[problem.n_glob_p :].reshape(problem.n_int, problem.n_data)
         self.maps = {}
 
