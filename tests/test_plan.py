@@ -217,7 +217,7 @@ def test_std_ratio_interval_is_the_sampling_error_of_a_std():
 def plan_app():
     import typer
 
-    from magyro.cli_plan import plan_command
+    from magyro.cli.simulation import plan_command
 
     app = typer.Typer()
     app.callback()(lambda: None)

@@ -1,4 +1,4 @@
-"""`magyro watch` and `magyro simulate --stream` (magyro.live, magyro.cli_live; issue 16 item 1).
+"""`magyro watch` and `magyro simulate --stream` (magyro.live, magyro.cli.live; issue 16 item 1).
 
 The staged recording: the sensors and field of problems/three-axes.toml, still for 10 s, then
 +/-90 deg back and forth about the gyro x axis alone (10-25 s), y alone (25-40 s), z alone

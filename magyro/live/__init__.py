@@ -9,5 +9,5 @@
     stream    `stream_session`: a session written as CSV lines in (accelerated) real time, for
               `magyro simulate PROBLEM --stream`
 
-The command functions are in `magyro.cli_live`.
+The command functions are in `magyro.cli.live`.
 """

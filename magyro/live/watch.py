@@ -8,7 +8,7 @@
 feeds an `ExcitationMonitor` (`magyro.live.monitor`) several times a second, shows each status
 (`magyro.live.display`) and writes it as a JSON line when asked; at the end of input, after
 `idle` seconds without data, on Ctrl-C or SIGTERM, it saves what it received as a session file,
-atomically. `magyro watch` (magyro.cli_live) is this function on the command line.
+atomically. `magyro watch` (magyro.cli.live) is this function on the command line.
 """
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """`magyro watch SOURCE` and `magyro simulate PROBLEM --stream` on the command line, over magyro.live.
 
-magyro.cli registers them: `app.command("watch")(watch_command)`, and its `simulate` command calls
+magyro.cli registers `watch_command`; `magyro simulate` (magyro.cli.simulation) calls
 `simulate_stream(problem, speed, seed)` when given --stream.
 """
 from __future__ import annotations
@@ -10,6 +10,8 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+
+from magyro.cli.common import fail, run_guarded
 
 
 def watch_command(
@@ -34,15 +36,12 @@ def watch_command(
     is within its target. Stop with Ctrl-C; -o saves what was received. Exit 0 once the input ends or is
     stopped (and the session, if asked, is written), 2 when the input is unusable.
     """
-    from magyro.cli import run_guarded
     from magyro.live.watch import watch
 
     def action():
         return watch(source, output=output, status=status, serial=serial, baud=baud, idle=idle, gyro_unit=gyro_unit,
                      mag_unit=mag_unit, targets=(target_scale_ppm, target_nonorth_deg, target_bias_deg_s,
                                                  target_misalignment_deg), refresh=refresh, quiet=quiet)
-
-    from magyro.cli import fail
 
     result = run_guarded(action, progress=False)
     if output is not None and not result.saved:
@@ -53,7 +52,6 @@ def watch_command(
 def simulate_stream(problem: str, speed: float = 1.0, seed: Optional[int] = None) -> None:
     """`magyro simulate PROBLEM --stream [--speed X] [--seed N]`: the simulated recording as CSV lines on
     standard output, paced in real time (X times faster; 0 as fast as possible)."""
-    from magyro.cli import run_guarded
 
     def action():
         from magyro.live.stream import stream_session

@@ -1,0 +1,64 @@
+"""`magyro` on the command line: a thin layer over the Python API.
+
+One module per command family, each command a plain function registered here (in the order `--help` lists them):
+  solve       magyro.cli.solve        the joint calibration
+  simulate, montecarlo, plan          magyro.cli.simulation
+  batch       magyro.cli.fleet        many devices against limits
+  import ...  magyro.cli.importing    BROAD, CSV, ULog, ROS bag recordings as session files
+  validate, apply, export, report     magyro.cli.results
+  observe, check                      magyro.cli.recording
+  watch       magyro.cli.live         (and simulate --stream)
+Every failure the user can fix ends with one plain message on stderr and the exit code of docs/spec.md
+section 3 (2 unusable input, 3 not observable, 1 solver failed): magyro.cli.common.
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+# one BLAS thread: the products here are small, and on a busy 2-core machine OpenBLAS's
+# threads made a 12-column least squares 100x slower (set before numpy is imported)
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import typer  # noqa: E402
+
+from magyro.cli.common import fail, run_guarded, version_callback  # noqa: E402,F401  (fail, run_guarded: public)
+from magyro.cli.fleet import batch  # noqa: E402
+from magyro.cli.importing import import_app  # noqa: E402
+from magyro.cli.live import watch_command  # noqa: E402
+from magyro.cli.recording import check_command, observe_command  # noqa: E402
+from magyro.cli.results import apply_command, export_command, report_command, validate_command  # noqa: E402
+from magyro.cli.simulation import montecarlo, plan_command, simulate  # noqa: E402
+from magyro.cli.solve import solve  # noqa: E402
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, help="Gyroscope calibration via the magnetometer (Wu & Pei).")
+
+
+@app.callback()
+def main_options(
+    version: bool = typer.Option(False, "--version", callback=version_callback, is_eager=True, help="Print the version and exit."),
+):
+    """Calibrate a gyroscope with the magnetometer on the same board, no turntable needed."""
+
+
+app.command()(solve)
+app.command()(simulate)
+app.command()(montecarlo)
+app.command()(batch)
+app.add_typer(import_app, name="import")
+app.command("validate")(validate_command)
+app.command("observe")(observe_command)
+app.command("check")(check_command)
+app.command("apply")(apply_command)
+app.command("export")(export_command)
+app.command("report")(report_command)
+app.command("watch")(watch_command)
+app.command("plan")(plan_command)
+
+
+def main():
+    app()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,39 @@
+"""What every command of `magyro` shares: one plain message and the exit code of docs/spec.md section 3
+for every failure the user can fix (`fail`, `run_guarded`), and `--version`."""
+from __future__ import annotations
+
+import os
+
+import typer
+
+from magyro import __version__
+from magyro.errors import MagyroError
+
+
+def fail(message: str, code: int) -> None:
+    typer.echo(f"magyro: {message}", err=True)
+    raise typer.Exit(code)
+
+
+def run_guarded(action, progress: bool = True):
+    """Run `action`, turning magyro errors and I/O failures into a message and an exit code; its steps show as a
+    live line on stderr when that is a terminal and `progress` (off with -q)."""
+    from magyro.progress import showing
+
+    try:
+        with showing(enabled=progress):
+            return action()
+    except MagyroError as e:
+        fail(str(e), e.exit_code)
+    except OSError as e:
+        fail(f"cannot write output: {e}", 1)
+    except Exception as e:  # a bug: still one line, not a traceback, unless debugging
+        if os.environ.get("MAGYRO_DEBUG"):
+            raise
+        fail(f"internal error ({type(e).__name__}: {e}); rerun with MAGYRO_DEBUG=1 for a traceback and please report it", 1)
+
+
+def version_callback(value: bool):
+    if value:
+        typer.echo(f"magyro {__version__}")
+        raise typer.Exit(0)

@@ -1,0 +1,95 @@
+"""`magyro validate`, `apply`, `export` and `report`: what a calibration is used and checked for."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from magyro.cli.common import run_guarded
+
+
+def validate_command(
+    session: Path = typer.Argument(..., help="Session file (.parquet or .csv); truth columns qw qx qy qz are used when present."),
+    calibration: Path = typer.Argument(..., help="Calibration JSON written by magyro solve."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the report JSON here."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Write the figure here (.png, .pdf or .svg; needs matplotlib)."),
+    series: bool = typer.Option(False, "--series", help="Put the error (or attitude) time series in the JSON too."),
+    gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
+    mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
+):
+    """Dead-reckon with the raw and the calibrated gyro: error against truth, or closure drift."""
+    from magyro.api import validate_file
+
+    def action():
+        report = validate_file(session, calibration, gyro_unit=gyro_unit, mag_unit=mag_unit, output=output, plot=plot,
+                               series=series)
+        if not quiet:
+            typer.echo(report.table())
+            for path, what in ((output, "report"), (plot, "figure")):
+                if path is not None:
+                    typer.echo(f"{what} written to {path}")
+
+    run_guarded(action, progress=not quiet)
+
+
+def apply_command(
+    calibration: Path = typer.Argument(..., help="Calibration JSON written by magyro solve."),
+    session: Path = typer.Argument(..., help="Session file to correct (.parquet or .csv, docs/spec.md section 2)."),
+    output: Path = typer.Option(..., "-o", "--output", help="Corrected session file to write (.parquet or .csv)."),
+    frame: str = typer.Option("b", "--frame", help="Frame of the corrected rates: b (the gyro's: K_g y + eps_b) or m (the magnetometer's: K y + eps)."),
+    gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
+    mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
+):
+    """Correct a session with a calibration: gyro as calibrated rates in rad/s, magnetometer as the unit field R (y - h)."""
+    from magyro.api import apply_file
+
+    def action():
+        s = apply_file(calibration, session, output, frame=frame, gyro_unit=gyro_unit, mag_unit=mag_unit)
+        typer.echo(f"corrected session written to {output}: {len(s.t_gyro_s)} gyro samples in rad/s (frame {frame}), "
+                   f"{len(s.t_mag_s)} magnetometer samples as the unit field")
+
+    run_guarded(action)
+
+
+def export_command(
+    calibration: Path = typer.Argument(..., help="Calibration JSON written by magyro solve."),
+    fmt: str = typer.Option(..., "--format", "-f", help="yaml (a plain, commented YAML file), c (a C99 header with the matrices and apply functions), kalibr (Kalibr's scale-misalignment IMU yaml, exact) or px4 (a QGroundControl .params file: gyro offset only, its cost stated)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write here (default: print to the terminal)."),
+):
+    """The calibration for other programs: K_g, bias, C_b_m, K, eps, R, h and the model, as YAML or a C99 header."""
+    from magyro.api import export_file
+
+    def action():
+        text = export_file(calibration, fmt, output)
+        if output is None:
+            typer.echo(text, nl=False)
+        else:
+            typer.echo(f"{fmt} export written to {output}")
+
+    run_guarded(action)
+
+
+def report_command(
+    session: Path = typer.Argument(..., help="The session file the calibration was solved from."),
+    calibration: Path = typer.Argument(..., help="The calibration JSON (magyro solve -o)."),
+    output: Path = typer.Option(..., "-o", "--output", help="The HTML page to write (self-contained: opens with no network)."),
+    split_check: bool = typer.Option(True, "--split-check/--no-split-check", help="Compute the split-half check when the calibration has none (two more solves)."),
+    gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
+    mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress and no verdict on the terminal."),
+):
+    """One HTML page to read or send: the recording check, excitation, calibration with std, residuals, split-half
+    check and dead reckoning, each with a figure and a sentence saying whether it is good (needs magyro[plot])."""
+    from magyro.report import report_file
+
+    def action():
+        say = None if quiet else (lambda message: typer.echo(f"report: {message}", err=True))
+        report = report_file(session, calibration, output, split_check=split_check, gyro_unit=gyro_unit,
+                             mag_unit=mag_unit, progress=say)
+        if not quiet:
+            typer.echo(report.verdict)
+            typer.echo(f"report written to {output}")
+
+    run_guarded(action, progress=False)   # its own lines

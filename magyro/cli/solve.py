@@ -1,0 +1,61 @@
+"""`magyro solve`: the joint calibration of one session."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from magyro.cli.common import run_guarded
+from magyro.options import Repairs, StdBounds
+
+
+def solve(
+    session: Path = typer.Argument(..., help="Session file (.parquet or .csv, docs/spec.md section 2)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the calibration JSON here."),
+    gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
+    mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
+    gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", help="Gyro noise density, deg/s/sqrt(Hz) (default: estimated)."),
+    mag_noise: Optional[float] = typer.Option(None, "--mag-noise", help="Magnetometer noise std, in its unit (default: estimated)."),
+    stride: Optional[int] = typer.Option(None, "--stride", min=1, help="One attitude node every N segments, one per gyro or magnetometer sample (default: 12, or 4 below 96 Hz; other strides compile their kernels once)."),
+    force: bool = typer.Option(False, "--force", help="Solve even when the motion does not excite every parameter."),
+    loss: str = typer.Option("l2", "--loss", help="Loss on the magnetometer residuals: l2, or huber (robust to spikes and local iron)."),
+    hard_iron_walk: Optional[float] = typer.Option(None, "--hard-iron-walk", help="Experimental (nls): let the hard iron move, as a random walk of this density (magnetometer unit per sqrt(s), e.g. 1 for uT); for iron or a magnet on the board whose field drifts. See docs/real-data.md section 4 for where it helps and where it does not."),
+    time_offset: bool = typer.Option(True, "--time-offset/--no-time-offset", help="Estimate the magnetometer's lag behind the gyro (default) or fix it to 0."),
+    keep_rests: bool = typer.Option(False, "--keep-rests", help="Keep the rests at both ends in the solve (default: trimmed, as the paper does)."),
+    split_check: bool = typer.Option(False, "--split-check", help="Also calibrate each half of the recording alone and warn when they disagree beyond their std (about 2x the time)."),
+    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help="Turn a repair of the recording off: restamp, held, saturation, spikes, or all (repeat for several)."),
+    max_std_scale_ppm: float = typer.Option(StdBounds.scale_ppm, "--max-std-scale-ppm", min=0.0, help="Refuse (exit 3) when the predicted one-sigma of a gyro scale factor exceeds this, ppm."),
+    max_std_nonorth_deg: float = typer.Option(StdBounds.nonorthogonality_deg, "--max-std-nonorth-deg", min=0.0, help="... of a non-orthogonality angle, deg."),
+    max_std_bias_deg_s: float = typer.Option(StdBounds.bias_deg_s, "--max-std-bias-deg-s", min=0.0, help="... of a gyro bias, deg/s."),
+    max_std_misalignment_deg: float = typer.Option(StdBounds.misalignment_deg, "--max-std-misalignment-deg", min=0.0, help="... of the misalignment, deg."),
+    method: str = typer.Option("nls", "--method", help="nls (the joint least squares) or ekf (the paper's two steps and error-state EKF)."),
+    history: Optional[Path] = typer.Option(None, "--history", help="--method ekf: write K, bias, m^i and their 1-sigma over time (Parquet)."),
+    history_plot: Optional[Path] = typer.Option(None, "--history-plot", help="--method ekf: plot them like the paper's Fig. 3/6/7 (needs magyro[plot])."),
+    trajectory: Optional[Path] = typer.Option(None, "--trajectory", help="--method nls: write the solved attitude at the nodes (quaternion C_m_i and its std) and the calibrated field (Parquet)."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
+):
+    """The joint calibration: magnetometer ellipsoid, gyro K_g, bias, misalignment, field, attitude.
+
+    --stride, --loss, --hard-iron-walk, --time-offset and --split-check apply to the nls method only.
+    """
+    from magyro.api import solve_file
+    from magyro.options import Options
+
+    def action():
+        bounds = StdBounds(max_std_scale_ppm, max_std_nonorth_deg, max_std_bias_deg_s, max_std_misalignment_deg)
+        options = Options.in_user_units(gyro_noise_deg_s_sqrt_hz, mag_noise, force=force, estimate_time_offset=time_offset,
+                                        trim_rests=not keep_rests, split_check=split_check, max_std=bounds,
+                                        repairs=Repairs.without(no_repair or []))
+        cal = solve_file(session, options, method, {"stride": stride, "loss": loss, "hard_iron_walk": hard_iron_walk},
+                         gyro_unit=gyro_unit,
+                         mag_unit=mag_unit, output=output, history=history, history_plot=history_plot,
+                         trajectory=trajectory)
+        if not quiet:
+            typer.echo(cal.table())
+            if output is not None:
+                typer.echo(f"calibration written to {output}")
+            if trajectory is not None:
+                typer.echo(f"attitude trajectory ({len(cal.trajectory.t_s)} nodes) written to {trajectory}")
+
+    run_guarded(action, progress=not quiet)
