@@ -40,6 +40,7 @@ def calibrate(session: Session, options: Options | None = None, method=None) -> 
     calibrated alone and compared (`Calibration.consistency`, and a warning
     when they disagree); that needs the least squares.
     """
+    from magyro.methods import run_method
     from magyro.progress import step
 
     options = options or Options()
@@ -48,7 +49,7 @@ def calibrate(session: Session, options: Options | None = None, method=None) -> 
         raise InputError("--split-check needs --method nls (it compares two least-squares solves)")
     step("checking the recording")
     session, recording = checked_recording(session, options)
-    cal = method.calibrate(session, replace(options, split_check=False))
+    cal = run_method(method, session, replace(options, split_check=False))
     step("checking that the result explains the recording")
     cal.recording = recording
     cal.warnings[:0] = [f"recording: {f.message}; {f.fix}" for f in recording.warnings if not f.repaired]
@@ -92,11 +93,12 @@ def check_the_result_explains_the_data(cal: Calibration, session: Session, optio
 def add_split_check(cal: Calibration, session: Session, options: Options, method) -> None:
     """Add the split-half consistency report (and its warning) to `cal`."""
     from magyro.front.prepare import moving_session
+    from magyro.methods import calibrator
     from magyro.result import consistency
 
     moving = moving_session(session, options)[0]
     halves = replace(method, trajectory=False) if getattr(method, "trajectory", False) else method  # no attitudes kept
-    report = consistency.split_check(moving, cal, replace(options, split_check=False), halves.calibrate)
+    report = consistency.split_check(moving, cal, replace(options, split_check=False), calibrator(halves))
     cal.consistency = report
     warning = consistency.split_warning(report)
     if warning:

@@ -12,7 +12,8 @@ from magyro.front import ellipsoid, rests
 from magyro.front.prepare import Prepared
 from magyro.nls.grid import Grid
 from magyro.nls.hard_iron import hard_iron_at_samples
-from magyro.nls.information import Reduced, propagate
+from magyro.nls.information import propagate
+from magyro.nls.reduction import Reduced
 from magyro.nls.method import NLS
 from magyro.nls.interval import N_GLOBAL
 from magyro.nls.problem import JointProblem

@@ -38,7 +38,7 @@ import numpy as np
 
 from magyro import so3
 from magyro.front.ellipsoid import calibrated_field
-from magyro.nls.information import Reduced
+from magyro.nls.reduction import Reduced
 from magyro.nls.hard_iron import hard_iron_at_samples
 from magyro.nls.interval import GLOBAL_SLICES, global_number
 from magyro.nls.problem import JointProblem

@@ -1,6 +1,9 @@
 """The joint nonlinear least squares as a method object: its own knobs, apart from the physics (`Options`).
 
     magyro.calibrate(session, options, method=NLS(stride=2, loss="huber"))
+
+Knobs only: the least squares that reads them is `magyro.nls.run.calibrate_nls`, reached through
+`magyro.methods.run_method` (this module imports no other part of magyro.nls).
 """
 from __future__ import annotations
 
@@ -39,9 +42,3 @@ class NLS:
     def huber(self) -> float | None:
         """The Huber threshold in sigmas, or None for plain least squares."""
         return self.huber_threshold if self.loss == "huber" else None
-
-    def calibrate(self, session, options=None):
-        """Calibrate gyro and magnetometer from one session (returns a `magyro.Calibration`)."""
-        from magyro.nls.run import calibrate_nls
-
-        return calibrate_nls(session, options, self)

@@ -6,7 +6,7 @@ import numpy as np
 from magyro import so3
 from magyro.front.ellipsoid import calibrated_field
 from magyro.nls.grid import Grid
-from magyro.nls.information import Reduced, attitude_covariance_blocks
+from magyro.nls.reduction import Reduced, attitude_covariance_blocks
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.result.trajectory import AttitudeTrajectory
 from magyro.session import Session

@@ -34,6 +34,7 @@ import numpy as np
 from magyro.ekf.method import EKF
 from magyro.errors import InputError, one_line
 from magyro.executor import executor_for, run_unordered
+from magyro.methods import run_method
 from magyro.progress import counting
 from magyro.nls.method import NLS
 from magyro.options import Options
@@ -45,7 +46,7 @@ from magyro.studies.montecarlo_values import Outcome, estimate_values, parameter
 from magyro.studies.scenario import Scenario
 from magyro.studies.simulate import simulate
 
-# method name -> method object (`.calibrate(session, options) -> Calibration`), looked up when a
+# method name -> method object (run by `magyro.methods.run_method(method, session, options)`), looked up when a
 # study starts (tests patch it). The CRLB is the bound of METHODS["nls"]'s discretisation.
 METHODS: dict = {"nls": NLS(), "ekf": EKF()}
 
@@ -96,7 +97,7 @@ def run_seed(problem: Scenario, seed: int, methods: dict, options: Options) -> l
     for name, method in methods.items():
         t0, c0 = time.perf_counter(), time.process_time()
         try:
-            cal = method.calibrate(session, options)
+            cal = run_method(method, session, options)
             est = estimate_values(cal, problem)
             rep = std_values(cal.std, "time_offset_s" in est)
             solver = {k: getattr(cal.solver, k) for k in ("method", "status", "iterations", "seconds")}
