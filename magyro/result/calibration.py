@@ -11,7 +11,7 @@ from magyro import so3
 from magyro.errors import InputError
 from magyro.front.ellipsoid import calibrated_field
 from magyro.front.findings import RecordingCheck
-from magyro.result.consistency import SplitCheck
+from magyro.result.consistency_record import SplitCheck
 from magyro.result.fit import FilterFit, LeastSquaresFit, fit_from_dict
 from magyro.result.trajectory import AttitudeTrajectory
 from magyro.result.parts import (Excitation, NoiseReport, RestCheck, SolverReport, Std, as_list, read_array,

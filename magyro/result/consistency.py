@@ -18,64 +18,21 @@ split-half error estimate (one degree of freedom).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from dataclasses import replace
 
 import numpy as np
 
 from magyro.errors import MagyroError
+from magyro.result.calibration import Calibration
+from magyro.result.consistency_record import MAX_HALF_Z, MAX_RMS_Z, SplitCheck  # noqa: F401  (kept importable here)
 from magyro.result.reported import misalignment_vector
 from magyro.session import Session
-
-if TYPE_CHECKING:
-    from magyro.result.calibration import Calibration
-
-MAX_HALF_Z = 4.0   # one parameter; 12 unit normals exceed it with probability ~1e-3
-MAX_RMS_Z = 2.0    # all twelve together; simulated sessions reached 1.35, BROAD trials 1.18 (white std: 3.2)
 
 QUANTITIES = (
     [(f"K_g[{i},{j}]", "K_g", (i, j)) for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))]
     + [(f"bias_{a}_deg_s", "bias_deg_s", (k,)) for k, a in enumerate("xyz")]
     + [(f"misalignment_d{a}_deg", "misalignment_deg", (k,)) for k, a in enumerate("xyz")]
 )
-
-
-@dataclass(frozen=True)
-class SplitCheck:
-    """The split-half check of one calibration (JSON `consistency`).
-
-    `parameters` maps each compared gyro parameter to its two half values, their
-    difference, z, the reported std and the split-half std; `failed` lists the
-    halves that could not be calibrated alone (then nothing is compared).
-    """
-
-    spans_s: tuple
-    max_half_z: float = MAX_HALF_Z
-    max_rms_z: float = MAX_RMS_Z
-    parameters: dict = field(default_factory=dict)
-    worst: str | None = None
-    max_abs_z: float = float("nan")
-    rms_z: float = float("nan")
-    failed: tuple = ()
-
-    @property
-    def compared(self) -> bool:
-        return not self.failed and bool(self.parameters)
-
-    def to_dict(self) -> dict:
-        out = {"spans_s": [list(s) for s in self.spans_s], "max_half_z": self.max_half_z, "max_rms_z": self.max_rms_z}
-        if self.failed:
-            out["failed"] = list(self.failed)
-        else:
-            out.update(parameters=self.parameters, worst=self.worst, max_abs_z=self.max_abs_z, rms_z=self.rms_z)
-        return out
-
-    @classmethod
-    def from_dict(cls, data: dict) -> "SplitCheck":
-        return cls(tuple(tuple(s) for s in data.get("spans_s", ())), float(data.get("max_half_z", MAX_HALF_Z)),
-                   float(data.get("max_rms_z", MAX_RMS_Z)), dict(data.get("parameters", {})), data.get("worst"),
-                   float(data.get("max_abs_z", float("nan"))), float(data.get("rms_z", float("nan"))),
-                   tuple(data.get("failed", ())))
 
 
 def gyro_values(cal: Calibration, C_b_m_ref: np.ndarray) -> dict[str, float]:
