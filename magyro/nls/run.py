@@ -18,9 +18,10 @@ import numpy as np
 from magyro.errors import ObservabilityError, SolverError
 from magyro.front.prepare import Prepared, prepare
 from magyro.nls.diagnostics import assemble
-from magyro.nls.information import gauss_newton_decrement, information_std, reduce_hessian
+from magyro.nls.information import information_std
 from magyro.nls.method import NLS
 from magyro.nls.problem import JointProblem, Linearisation
+from magyro.nls.reduction import gauss_newton_decrement, reduce_hessian
 from magyro.nls.solve import build_problem, problem_parameters, solve_passes
 from magyro.nls.disturbance import disturbance_covariance
 from magyro.nls.trajectory import attitude_trajectory, solved_attitudes

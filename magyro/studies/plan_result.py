@@ -1,0 +1,227 @@
+"""A plan (`magyro plan`) as its result: the chosen turns with their predicted std beside the comparison
+motions (`Plan`, `Comparison`), printed as a table with the instructions, and written as a problem file
+(TOML, motion kind "turns", the predicted std in an informational [plan] table) that reads back as the plan.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from magyro.studies.plan_scoring import GROUPS, GYRO_ROWS, ratios
+from magyro.studies.plan_turns import instructions, plan_scenario, start_pose_instruction
+from magyro.studies.scenario import Scenario, Turn
+
+
+@dataclass
+class Comparison:
+    """One motion of the comparison table: its predicted gyro std, or why there is none."""
+
+    name: str
+    how: str                          # how it was brought to the plan's duration and peak rate
+    std: dict[str, float] | None
+    error: str | None = None
+
+
+@dataclass
+class Plan:
+    """The chosen turns, their predicted std, and the motions they are compared with."""
+
+    duration_s: float
+    max_rate_deg_s: float
+    gyro_noise_deg_s_sqrt_hz: float
+    mag_noise: float
+    base: Scenario                    # the base problem, with the noise levels of the plan
+    turns: tuple[Turn, ...]
+    template: str                     # the chosen template (after refinement)
+    std: dict[str, float]             # predicted one-sigma of the 12 gyro parameters
+    reference: Comparison             # the paper's motion at the same duration and peak rate
+    comparisons: list[Comparison]     # the canonical motions
+    searched: str                     # what the search tried
+    evaluations: int
+    seconds: float
+
+    @property
+    def name(self) -> str:
+        return f"plan-{self.duration_s:g}s"
+
+    @property
+    def ratio_to_paper(self) -> dict[str, float]:
+        return ratios(self.std, self.reference.std)
+
+    @property
+    def peak_rate(self) -> float:
+        return max(st.peak_rate_deg_s for st in self.turns)
+
+    def problem(self) -> Scenario:
+        """The plan as a Scenario (the base sensors, the turns)."""
+        return plan_scenario(self.base, self.turns, self.duration_s, self.name,
+                             f"magyro plan: {self.duration_s:g} s of turns by hand, peak {self.max_rate_deg_s:g} deg/s")
+
+    # ------------------------------------------------------------------ text
+
+    def table(self) -> str:
+        lines = [f"magyro plan: {self.duration_s:g} s, peak rate {self.max_rate_deg_s:g} deg/s, gyro noise "
+                 f"{self.gyro_noise_deg_s_sqrt_hz:g} deg/s/sqrt(Hz), magnetometer noise {self.mag_noise:g} "
+                 f"{self.base.mag_unit} (sensors of {self.base.name})",
+                 "",
+                 "The motion (each turn about the device's own axis, wherever the previous turns left it; "
+                 "right-hand rule: thumb along the axis, fingers curl the way to turn; start slowly, be "
+                 "fastest half way, stop smoothly):"]
+        lines.append(f"  0. {start_pose_instruction(self.base.C0)}: the turns are chosen for where the field "
+                     "lies in the device, so this start pose matters")
+        lines += instructions(self.turns)
+        lines += ["", f"Predicted one-sigma (Cramer-Rao bound, the information the solve uses) against the "
+                      f"paper's motion ({self.reference.how}):"]
+        others = [c for c in self.comparisons]
+        head = f"  {'parameter':<22}{'plan':>11}{'paper':>11}{'plan/paper':>11}"
+        head += "".join(f"{c.name:>12}" for c in others)
+        lines.append(head)
+        ref = self.reference.std
+        for name in GYRO_ROWS:
+            row = f"  {name:<22}{self.std[name]:>11.3g}{ref[name]:>11.3g}{self.std[name] / ref[name]:>11.2f}"
+            row += "".join(f"{c.std[name]:>12.3g}" if c.std else f"{'-':>12}" for c in others)
+            lines.append(row)
+        lines += ["", "By group (plan / other motion; the largest ratio in the group, and the mean):"]
+        head = f"  {'group':<32}{'vs paper':>14}" + "".join(f"{'vs ' + c.name:>16}" for c in others)
+        lines.append(head)
+        for group, names in GROUPS.items():
+            row = f"  {group:<32}{_group_ratio(self.std, ref, names):>14}"
+            row += "".join(f"{_group_ratio(self.std, c.std, names):>16}" for c in others)
+            lines.append(row)
+        lines.append("")
+        for c in [self.reference] + others:
+            lines.append(f"  {c.name}: {c.error if c.error else c.how}")
+        e = self.base.motion.initial_euler_deg
+        lines += ["", f"The plan is for the start pose of {self.base.name} (C0 = [roll, pitch, yaw] "
+                      f"[{e[0]:g}, {e[1]:g}, {e[2]:g}] deg from ENU, x east, y north, z up) in a field of dip "
+                      f"{self.base.dip_deg:g} deg; from another start pose the same turns predict a larger std "
+                      f"(see magyro/studies/plan.py).",
+                  f"Search: {self.searched}", f"Chosen: {self.template}; {self.evaluations} motions scored in "
+                  f"{self.seconds:.0f} s."]
+        return "\n".join(lines)
+
+    def to_problem_toml(self) -> str:
+        """A complete problem file: the base sensors with the plan's noise levels, the turns, and the plan's
+        predicted std in an informational [plan] table."""
+        b = self.base
+        q = _toml_str
+        turns = []
+        for st in self.turns:
+            if st.is_rest:
+                turns.append(f"  {{rest_s = {_num(st.seconds)}}},")
+            else:
+                axis = ", ".join(_num(round(float(v), 12)) for v in st.axis)
+                turns.append(f"  {{axis = [{axis}], angle_deg = {_num(st.angle_deg)}, seconds = {_num(st.seconds)}}},")
+        ratio = self.ratio_to_paper
+        lines = [
+            "# magyro problem written by `magyro plan`; every key is documented at the top of paper-table1.toml.",
+            "# [plan] is informational (the simulator does not read it): the search, the predicted one-sigma of",
+            "# the gyro parameters (the Cramer-Rao bound at noise seed 0, as `magyro montecarlo` prints it), and",
+            "# that of the paper's motion at the same duration and peak rate (`reference_std`) with the ratios.",
+            "",
+            "[problem]",
+            f"name = {q(self.name)}",
+            f"description = {q(self.problem().description)}",
+            f"duration_s = {_num(self.duration_s)}",
+            "",
+            "[gyro]",
+            f"rate_hz = {_num(b.gyro_rate_hz)}",
+            f"noise_density_deg_s_sqrt_hz = {_num(b.gyro_noise_density_deg_s_sqrt_hz)}",
+            f"K_g = {_matrix(b.K_g)}",
+            f"bias_deg_s = {_vec(b.gyro_bias_deg_s)}",
+            "",
+            "[misalignment]",
+            f"euler_deg = {_vec(b.misalignment_euler_deg)}",
+            "",
+            "[magnetometer]",
+            f"rate_hz = {_num(b.mag_rate_hz)}",
+            f"time_offset_s = {_num(b.mag_time_offset_s)}",
+            f"noise = {_num(b.mag_noise_std)}",
+            f"unit = {q(b.mag_unit)}",
+            f"field_strength = {_num(b.field_strength)}",
+            f"dip_deg = {_num(b.dip_deg)}",
+            f"soft_iron = {_matrix(b.soft_iron)}",
+            f"hard_iron = {_vec(b.hard_iron)}",
+            "",
+            "[motion]",
+            'kind = "turns"',
+            f"initial_euler_deg = {_vec(b.motion.initial_euler_deg)}",
+            "turns = [",
+            *turns,
+            "]",
+            "",
+            "[plan]",
+            'generated_by = "magyro plan"',
+            f"max_rate_deg_s = {_num(self.max_rate_deg_s)}",
+            f"peak_rate_deg_s = {_num(round(self.peak_rate, 6))}",
+            f"base = {q(b.name)}",
+            f"template = {q(self.template)}",
+            f"search = {q(self.searched)}",
+            f"reference = {q(self.reference.how)}",
+            f"max_ratio_to_reference = {_num(round(max(ratio.values()), 6))}",
+            "",
+            "[plan.predicted_std]",
+            *[f"{q(k)} = {_num(v)}" for k, v in self.std.items()],
+            "",
+            "[plan.reference_std]",
+            *[f"{q(k)} = {_num(v)}" for k, v in self.reference.std.items()],
+            "",
+            "[plan.ratio_to_reference]",
+            *[f"{q(k)} = {_num(round(v, 6))}" for k, v in ratio.items()],
+        ]
+        text = "\n".join(lines) + "\n"
+        _check_round_trip(text, self)
+        return text
+
+    def to_dict(self) -> dict:
+        return {
+            "duration_s": self.duration_s, "max_rate_deg_s": self.max_rate_deg_s,
+            "turns": [{"rest_s": st.seconds} if st.is_rest else
+                      {"axis": st.axis.tolist(), "angle_deg": st.angle_deg, "seconds": st.seconds} for st in self.turns],
+            "std": self.std, "reference": dataclasses.asdict(self.reference),
+            "comparisons": [dataclasses.asdict(c) for c in self.comparisons],
+            "template": self.template, "searched": self.searched, "evaluations": self.evaluations,
+            "seconds": self.seconds,
+        }
+
+
+def _check_round_trip(text: str, plan: "Plan") -> None:
+    """The written problem must read back as the plan's motion (a guard on the hand-made TOML)."""
+    from magyro.io.toml_file import parse_toml
+    from magyro.studies.scenario import parse_problem
+
+    back = parse_problem(parse_toml(text), source=plan.name)
+    assert len(back.motion.turns) == len(plan.turns)
+    for a, b in zip(back.motion.turns, plan.turns):
+        assert a.is_rest == b.is_rest and a.seconds == b.seconds and a.angle_deg == b.angle_deg
+        assert a.is_rest or np.allclose(a.axis, b.axis, atol=1e-12)
+
+
+def _group_ratio(std: dict, other: dict | None, names: list[str]) -> str:
+    if not other or not all(math.isfinite(other[n]) and other[n] > 0 for n in names):
+        return "-"
+    r = [std[n] / other[n] for n in names]
+    return f"{max(r):.2f} / {float(np.mean(r)):.2f}"
+
+
+def _toml_str(text: str) -> str:
+    return json.dumps(str(text), ensure_ascii=False)
+
+
+def _num(v: float) -> str:
+    v = float(v)
+    if not math.isfinite(v):
+        return '"inf"' if v > 0 else '"nan"'
+    return repr(v)
+
+
+def _vec(v) -> str:
+    return "[" + ", ".join(_num(x) for x in np.asarray(v, float)) + "]"
+
+
+def _matrix(M) -> str:
+    return "[" + ", ".join(_vec(row) for row in np.asarray(M, float)) + "]"
