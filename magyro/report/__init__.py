@@ -9,7 +9,8 @@ residuals over time, the split-half check, dead reckoning raw against calibrated
 (embedded PNG) and one sentence computed from the numbers saying what they mean and whether that is good.
 
 Modules: `build` (loading, computing, the verdict: `report_file`, `build_report`, `Report`), `sections`
-(each section's numbers, sentence and details), `figures` (the report's own figures, PNG embedding) and
+and `fit_sections` (each section's numbers, sentence and details; 4 and 5 in `fit_sections`), `section`
+(what a section is made of, and the HTML pieces they write), `figures` (the report's own figures, PNG embedding) and
 `html` (the page: CSS inline, no scripts, no fonts, no network).
 """
 from __future__ import annotations

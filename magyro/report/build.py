@@ -72,6 +72,7 @@ def build_report(session, cal, *, split_check: bool = True, progress=None, sessi
     from magyro.api import method_named, observe
     from magyro.front.prepare import moving_session
     from magyro.front.repairs import repair_recording
+    from magyro.methods import calibrator
     from magyro.options import Options
     from magyro.report.html import render
     from magyro.result import consistency
@@ -96,7 +97,7 @@ def build_report(session, cal, *, split_check: bool = True, progress=None, sessi
             say("split-half check: solving each half (two least-squares solves)")
             try:
                 split = consistency.split_check(moving, cal, replace(options, split_check=False),
-                                                method_named("nls").calibrate)
+                                                calibrator(method_named("nls")))
                 computed = True
             except MagyroError as exc:
                 why_not = f"it failed ({exc})"

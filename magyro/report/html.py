@@ -1,7 +1,7 @@
 """The report's page: one HTML file, CSS inline, figures embedded, no scripts, fonts or other files."""
 from __future__ import annotations
 
-from magyro.report.sections import esc
+from magyro.report.section import esc
 
 STATUS_WORDS = {"good": "good", "fair": "caveat", "poor": "problem", "": "not judged"}
 
