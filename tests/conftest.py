@@ -1,11 +1,16 @@
-"""Shared fixtures: simulated sessions solved once per test run, and a `magyro` runner.
+"""Shared fixtures: sessions solved once per test run, and a `magyro` runner; how the run is spread over workers.
 
-A solve takes seconds, so every (problem, seed) is calibrated once (session scope)
-and the Calibration is shared by the tests that check it.
+A solve takes seconds, so every (problem, seed) and the shipped broad-02 trial are calibrated once per run
+(session scope) and the Calibration is shared by the tests that check it. The suite runs on two pytest-xdist
+workers (pyproject.toml's addopts: `-n 2 --dist loadfile`, one test file per worker at a time, so a file's
+module fixtures are made once); a solve two files share is made by the first worker that needs it and read by
+the other from the run's temporary folder (`shared_across_workers`).
 """
 from __future__ import annotations
 
 import dataclasses
+import os
+import pickle
 import subprocess
 import sys
 from pathlib import Path
@@ -32,8 +37,52 @@ class Solved:
     cal: object
 
 
+SHIPPED_BROAD_02 = Path(__file__).resolve().parents[1] / "data" / "broad-02.parquet"
+
+# The test files that cost the most (CPU s of the whole file, measured 2026-12-02 on the 2-core machine), run
+# first so that no worker starts a long file when the other is nearly done; the rest follow in their usual order.
+HEAVY_FILES = ("test_plan.py", "test_report.py", "test_trajectory.py", "test_real_data.py", "test_watch.py",
+               "test_montecarlo.py", "test_consistency.py", "test_cli_methods.py", "test_cli.py")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Heaviest files first (a stable sort: the order within a file and among the others is kept)."""
+    rank = {name: k for k, name in enumerate(HEAVY_FILES)}
+    items.sort(key=lambda item: rank.get(Path(str(item.fspath)).name, len(rank)))
+
+
+def shared_across_workers(tmp_path_factory, key: str, compute):
+    """compute() once per test run, whichever xdist worker asks first: its result is pickled under the run's
+    temporary folder (common to the workers) behind a file lock, and the other workers read it."""
+    try:
+        import fcntl
+    except ImportError:          # no flock (Windows): each worker computes its own
+        return compute()
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent       # basetemp/popen-gwN -> the run's folder
+    path = root / "shared-across-workers" / f"{key}.pickle"
+    path.parent.mkdir(exist_ok=True)
+    with open(path.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)      # released when the file closes
+        if path.exists():
+            return pickle.loads(path.read_bytes())
+        value = compute()
+        part = path.with_suffix(".part")
+        part.write_bytes(pickle.dumps(value))
+        part.replace(path)
+        return value
+
+
 @pytest.fixture(scope="session")
-def solve_cache():
+def broad02_solved(tmp_path_factory):
+    """(session, calibration) of the shipped BROAD trial 2, default options: solved once per run (read-only)."""
+    session = load_session(SHIPPED_BROAD_02)
+    return session, shared_across_workers(tmp_path_factory, "broad-02-default", lambda: calibrate(session))
+
+
+@pytest.fixture(scope="session")
+def solve_cache(tmp_path_factory):
     """get(name, seed, via_file=None) -> Solved; each key solved once per run.
 
     With `via_file` (a directory) the session goes through write_session/load_session
@@ -41,15 +90,19 @@ def solve_cache():
     """
     cache: dict = {}
 
+    def solved(name: str, seed: int, via_file: Path | None) -> Solved:
+        session, truth = simulate(load_problem(name), seed)
+        if via_file is not None:
+            path = Path(via_file) / f"{name}-{seed}.parquet"
+            write_session(session, path)
+            session = load_session(path)
+        return Solved(name, seed, session, truth, calibrate(session))
+
     def get(name: str, seed: int, via_file: Path | None = None) -> Solved:
         key = (name, seed, via_file is not None)
         if key not in cache:
-            session, truth = simulate(load_problem(name), seed)
-            if via_file is not None:
-                path = Path(via_file) / f"{name}-{seed}.parquet"
-                write_session(session, path)
-                session = load_session(path)
-            cache[key] = Solved(name, seed, session, truth, calibrate(session))
+            cache[key] = shared_across_workers(tmp_path_factory, f"{name}-{seed}-{'file' if via_file else 'memory'}",
+                                               lambda: solved(name, seed, via_file))
         return cache[key]
 
     return get

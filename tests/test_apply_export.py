@@ -28,11 +28,10 @@ def sha256(path) -> str:
 
 
 @pytest.fixture(scope="module")
-def solved(tmp_path_factory):
-    """(folder, session, calibration, calibration path): broad-02 calibrated once."""
+def solved(tmp_path_factory, broad02_solved):
+    """(folder, session, calibration, calibration path): broad-02 calibrated once (conftest's broad02_solved)."""
     folder = tmp_path_factory.mktemp("apply")
-    session = load_session(BROAD_02)
-    cal = magyro.calibrate(session)
+    session, cal = broad02_solved
     path = folder / "calib.json"
     cal.to_json(path)
     return folder, session, magyro.Calibration.from_json(path), path

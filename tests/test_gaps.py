@@ -101,11 +101,9 @@ def with_hole(session, t0_s: float, length_s: float, sensors=("gyro", "mag")):
 
 
 @pytest.fixture(scope="module")
-def broad02():
-    from magyro.io import load_session
-
-    session = load_session(SHIPPED)
-    return session, calibrate(session)
+def broad02(broad02_solved):
+    """(session, calibration) of the shipped trial (SHIPPED), solved once per run (conftest)."""
+    return broad02_solved
 
 
 def differences(cal, clean) -> dict:

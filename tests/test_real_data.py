@@ -14,7 +14,6 @@ import pytest
 from magyro.options import Options
 from magyro import calibrate
 from magyro.io import import_broad_movement
-from magyro.io import load_session
 from magyro.result.reported import misalignment_vector
 from magyro.studies.scenario import load_problem
 from magyro.studies.simulate import simulate
@@ -47,10 +46,9 @@ def z_scores(estimate, predicted, std) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def broad02():
-    """(session, calibration) of the shipped real trial, solved once."""
-    session = load_session(BROAD_02_SHIPPED)
-    return session, calibrate(session, Options())
+def broad02(broad02_solved):
+    """(session, calibration) of the shipped real trial, solved once (conftest's broad02_solved: Options())."""
+    return broad02_solved
 
 
 @pytest.mark.slow

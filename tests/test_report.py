@@ -32,11 +32,11 @@ MAX_LOAD_MS = 2000.0
 
 
 @pytest.fixture(scope="module")
-def built(tmp_path_factory):
-    """(calibration, its JSON path, the report, the HTML path): one solve, then the report (two more solves for
-    the split-half check, which the calibration does not carry)."""
+def built(tmp_path_factory, broad02_solved):
+    """(calibration, its JSON path, the report, the HTML path): one solve (conftest's broad02_solved, of SESSION),
+    then the report (two more solves for the split-half check, which the calibration does not carry)."""
     folder = tmp_path_factory.mktemp("report")
-    cal = magyro.calibrate(load_session(SESSION))
+    cal = broad02_solved[1]
     cal_path = folder / "cal.json"
     cal.to_json(cal_path)
     out = folder / "report.html"
