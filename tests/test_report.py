@@ -23,6 +23,8 @@ pytest.importorskip("matplotlib")
 
 DATA = Path(__file__).resolve().parent.parent / "data"
 SESSION = DATA / "broad-02.parquet"
+
+pytestmark = pytest.mark.slow  # every test reads the report of the shipped real trial: a solve and two half solves
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
                  "--disable-sync", "--no-first-run"]

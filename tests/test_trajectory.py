@@ -62,6 +62,7 @@ def test_attitude_covariance_is_the_attitude_block_of_the_inverse_information():
         np.testing.assert_allclose(blocks[k], cov[3 * k:3 * k + 3, 3 * k:3 * k + 3], rtol=1e-6)
 
 
+@pytest.mark.slow   # 24 solves
 def test_reported_attitude_std_matches_the_actual_error_on_simulations():
     """24 simulated phone-module sessions: the attitude error against the analytic truth, in units of the
     reported std, has an RMS of about 1 (40 runs gave 1.05; a std off by 1.5x either way fails)."""
@@ -78,6 +79,7 @@ def test_reported_attitude_std_matches_the_actual_error_on_simulations():
     assert np.median(errors) < 0.2   # deg: the solved attitude itself is good
 
 
+@pytest.mark.slow   # the real trial solved with its trajectory
 def test_trajectory_on_a_real_recording_follows_the_optical_truth(tmp_path, run_magyro):
     """BROAD trial 02 (shipped): the written trajectory, conjugated into the gyro frame by the solved C_b_m,
     follows the optical truth within 2.5 deg at 95 % of the nodes (measured: median 1.16, p95 1.93)."""
