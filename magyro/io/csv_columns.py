@@ -92,8 +92,13 @@ def resolved_column_map(path, found: list[str], column_map: dict | None, time_ne
     missing = [c for c in REQUIRED_COLUMNS if c not in mapping and (time_needed or c != TIME_COLUMN)]
     if missing:
         raise InputError(f"{path}: no column for {', '.join(missing)}; found columns: {shown_columns(found)}. "
-                         f"Map them, e.g. --map {missing[0]}=COLUMN (Python: column_map={{'{missing[0]}': 'COLUMN'}})")
+                         f"Map them, e.g. --map {missing[0]}=COLUMN (Python: column_map={{'{missing[0]}': 'COLUMN'}})"
+                         f"{_COUNTER_HINT if TIME_COLUMN in missing else ''}")
     return without_double_use(path, mapping)
+
+
+_COUNTER_HINT = ("; a file whose only time is a sample counter (or none) takes its rate instead: --rate HZ "
+                 "(Python: rate_hz=HZ), with the counter mapped as t if it has one")
 
 
 def mapped_and_guessed_columns(path, found: list[str], column_map: dict) -> dict[str, str]:

@@ -132,7 +132,7 @@ def numbers(path, series: pd.Series, column: str, limit: float = MAX_ABS_READING
         raise InputError(f"{path}: row {i}, column {column} holds {values[i]:g}, which no sensor reads "
                          f"({absurd.size} row(s) of this column are infinite or beyond +-{limit:g}; rows numbered "
                          f"from 0, not counting the header); the logger wrote garbage there: delete those rows "
-                         f"or cut them off (--start/--end after importing the rest)")
+                         f"and import again")
     return values
 
 
@@ -220,14 +220,16 @@ def check_csv_time_unit(path, table: pd.DataFrame, time_unit: str, t_raw: np.nda
     for a sample counter (integer stamps stepping by 1), ask for its rate."""
     g = table[list(GYRO_COLUMNS)].notna().all(axis=1).to_numpy()
     read_as = time_unit_label(time_factor(path, time_unit))
+    counter = t_raw is not None and is_sample_counter(t_raw[g])
+    counter_message = (f"{path}: the time column counts samples (whole numbers stepping by 1), it is not a clock; "
+                       f"give the sampling rate: --rate HZ (Python: rate_hz=HZ)")
+    if counter and read_as == "s":  # whole seconds stepping by 1: a 1 Hz gyro is no recording to calibrate
+        raise InputError(counter_message)
     try:
         check_time_unit(table[TIME_COLUMN].to_numpy()[g], read_as,
                         fix=lambda unit: f"import with --time-unit {unit} (Python: time_unit='{unit}')")
     except InputError as exc:
-        if t_raw is not None and is_sample_counter(t_raw[g]):
-            raise InputError(f"{path}: the time column counts samples (whole numbers stepping by 1), it is "
-                             f"not a clock; give the sampling rate: --rate HZ (Python: rate_hz=HZ)") from None
-        raise InputError(f"{path}: with time unit {time_unit!r}, {exc}") from None
+        raise InputError(counter_message if counter else f"{path}: with time unit {time_unit!r}, {exc}") from None
 
 
 def is_sample_counter(t_raw: np.ndarray) -> bool:
