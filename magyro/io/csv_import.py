@@ -169,7 +169,7 @@ def acc_scale_from_gravity(label, acc: pd.DataFrame) -> float:
         return 1.0
     shown = f"{median:.4g}" if np.isfinite(median) else "not defined (no complete sample)"
     raise InputError(f"{label}: cannot tell the accelerometer's unit: its median |a| is {shown}, neither "
-                     f"about 1 (g) nor about 9.8 (m/s^2); leave the accelerometer file out")
+                     f"about 1 (g) nor about 9.8 (m/s^2); give the gyro and magnetometer files without it")
 
 
 def merge_rows(path, table: pd.DataFrame) -> pd.DataFrame:

@@ -233,9 +233,18 @@ def recognised_preset(sources, delimiter: str | None = None, header_line: int = 
     if all(is_sensor_logger_header(h) and "seconds_elapsed" in h and _is_sensor_logger_member(s.name)
            for s, h in zip(sources, headers)):
         return "sensor-logger"
-    if all(_phyphox_file(s, str(s), delimiter, header_line, explicit=False) is not None for s in sources):
+    if all(_is_phyphox_layout(s, h, delimiter, header_line) for s, h in zip(sources, headers)):
         return "phyphox"
     return None
+
+
+def _is_phyphox_layout(path: Path, header: list[str], delimiter, header_line) -> bool:
+    """A phyphox sensor file and nothing else: "Time (s)", one sensor's x y z, and perhaps its "Absolute" column
+    (a logger's CSV holding several sensors, in other units too, is no phyphox export)."""
+    found = _phyphox_file(path, str(path), delimiter, header_line, explicit=False)
+    if found is None:
+        return False
+    return all(c in found.columns.values() or c.lower().startswith("absolute") for c in header)
 
 
 def _holds_sensor_logger_files(source: Path) -> bool:
