@@ -103,6 +103,9 @@ def _csv_files(sources: list[Path], unpack_to: Path, wanted=lambda name: True) -
             files += [(p, str(p)) for p in sorted(source.glob("*.csv")) + sorted(source.glob("*.CSV"))]
         elif is_zip(source):
             files += unpack_csv_members(source, unpack_to / f"{len(files)}", wanted)
+        elif source.suffix.lower() == ".zip" and source.is_file():
+            raise InputError(f"{source}: not a readable zip (no zip directory at its end: cut short, or not a zip); "
+                             f"copy or export it again")
         else:
             files.append((source, str(source)))
     return files

@@ -108,4 +108,5 @@ def _unpacked(z: zipfile.ZipFile, archive: Path, info: zipfile.ZipInfo, folder: 
 
 
 def _mib(n_bytes: int) -> str:
-    return f"{n_bytes / 2**20:.0f} MiB"
+    mib = n_bytes / 2**20
+    return f"{mib:.0f} MiB" if mib >= 10 or mib == int(mib) else f"{mib:.3f} MiB"
