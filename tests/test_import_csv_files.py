@@ -405,7 +405,8 @@ def test_sample_counter_time_takes_a_rate_and_the_hint_says_so(tmp_path):
     for extra in ([], ["--time-unit", "us"]):
         text = refused(cli(src, "-o", tmp_path / "s.parquet", "--gyro-unit", "rad/s", "--mag-unit", "uT",
                            "-m", "t=sample", *extra))
-        assert "counts samples" in text and "--rate HZ" in text and "millisecond" not in text, text
+        assert "the time column sample counts samples or packets" in text and "--rate HZ" in text, text
+        assert "millisecond" not in text
     out = tmp_path / "s.parquet"
     r = cli(src, "-o", out, "--gyro-unit", "rad/s", "--mag-unit", "uT", "-m", "t=sample", "--rate", "250")
     assert r.exit_code == 0, r.output
@@ -467,3 +468,23 @@ def test_real_x_io_csv_through_plain_import(tmp_path):
     assert r.exit_code == 0 and "read as" not in r.output, r.output
     s = load_session(tmp_path / "f.parquet")
     assert len(s.t_gyro_s) == 13514 and 9.6 < float(np.median(np.linalg.norm(s.acc_m_s2, axis=1))) < 10.0
+
+
+def test_x_imu_packet_numbers_are_a_counter_not_milliseconds(tmp_path):
+    """x-IMU's CalInertialAndMag.csv ("Packet number" stepping by 2 or 3, as in xioTechnologies'
+    Oscillatory-Motion-Tracking-With-x-IMU LoggedData): once taken for ms, now a counter given its rate."""
+    g, m = gyro_rad_s(N_GYRO), mag_ut(N_GYRO)
+    packets = np.cumsum(np.where(np.arange(N_GYRO) % 12 == 11, 3, 2)) - 2
+    src = tmp_path / "LoggedData_CalInertialAndMag.csv"
+    src.write_text("Packet number,Gyroscope X (deg/s),Gyroscope Y (deg/s),Gyroscope Z (deg/s),Magnetometer X (G),"
+                   "Magnetometer Y (G),Magnetometer Z (G)\n" + "".join(
+                       f"{p}," + ",".join(repr(float(v)) for v in (*np.rad2deg(g[k]), *m[k] / 100)) + "\n"
+                       for k, p in enumerate(packets)))
+    units = ["--gyro-unit", "deg/s", "--mag-unit", "G"]
+    text = refused(cli(src, "-o", tmp_path / "s.parquet", *units))
+    assert "no column for t" in text and "--rate HZ" in text
+    text = refused(cli(src, "-o", tmp_path / "s.parquet", *units, "-m", "t=Packet number"))
+    assert "the time column Packet number counts samples or packets" in text and "millisecond" not in text, text
+    s = import_csv(src, {"t": "Packet number"}, "deg/s", "G", rate_hz=512)
+    np.testing.assert_allclose(s.t_gyro_s, packets / 512, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(s.gyro_rad_s, g, rtol=1e-12)

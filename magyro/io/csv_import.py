@@ -16,6 +16,7 @@ An imported CSV goes through the same checks as a loaded session file
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -69,7 +70,7 @@ def import_csv(path, column_map: dict | None, gyro_unit: str, mag_unit: str,
     t_raw = table[TIME_COLUMN].to_numpy()
     table[TIME_COLUMN] = (table[TIME_COLUMN] - t_first).astype(float) * time_scale
     if rate_hz is None:
-        check_csv_time_unit(path, table, time_unit, t_raw)
+        check_csv_time_unit(path, table, time_unit, t_raw, mapping[TIME_COLUMN])
     clock = f"sample counter at {rate_hz:g} Hz" if rate_hz is not None else f"time unit {time_unit}"
     metadata = {
         "source": str(path),
@@ -215,14 +216,15 @@ def _check_increasing(path, group: tuple, t: np.ndarray, rows: np.ndarray) -> No
                          f"(rows numbered from 0, not counting the header)")
 
 
-def check_csv_time_unit(path, table: pd.DataFrame, time_unit: str, t_raw: np.ndarray | None = None) -> None:
+def check_csv_time_unit(path, table: pd.DataFrame, time_unit: str, t_raw: np.ndarray | None = None,
+                        column: str = "") -> None:
     """The gyro's median sample interval must be between 10 us and 1 s; else name the unit that fits, or,
-    for a sample counter (integer stamps stepping by 1), ask for its rate."""
+    for a sample counter (`is_sample_counter`), ask for its rate."""
     g = table[list(GYRO_COLUMNS)].notna().all(axis=1).to_numpy()
     read_as = time_unit_label(time_factor(path, time_unit))
-    counter = t_raw is not None and is_sample_counter(t_raw[g])
-    counter_message = (f"{path}: the time column counts samples (whole numbers stepping by 1), it is not a clock; "
-                       f"give the sampling rate: --rate HZ (Python: rate_hz=HZ)")
+    counter = t_raw is not None and is_sample_counter(t_raw[g], column)
+    counter_message = (f"{path}: the time column {column} counts samples or packets (whole numbers), it is not a "
+                       f"clock; give the counter's rate in counts per second: --rate HZ (Python: rate_hz=HZ)")
     if counter and read_as == "s":  # whole seconds stepping by 1: a 1 Hz gyro is no recording to calibrate
         raise InputError(counter_message)
     try:
@@ -232,12 +234,18 @@ def check_csv_time_unit(path, table: pd.DataFrame, time_unit: str, t_raw: np.nda
         raise InputError(counter_message if counter else f"{path}: with time unit {time_unit!r}, {exc}") from None
 
 
-def is_sample_counter(t_raw: np.ndarray) -> bool:
-    """Whole-number stamps whose median step is exactly 1."""
+_COUNTER_NAME = re.compile(r"packet|sample|count|index|seq|frame|tick", re.IGNORECASE)
+
+
+def is_sample_counter(t_raw: np.ndarray, column: str = "") -> bool:
+    """Whole-number stamps whose median step is exactly 1, or that a counter's name heads (x-IMU's
+    "Packet number", which steps by about 2: a sample every other packet)."""
     if len(t_raw) < 2:
         return False
     t = np.asarray(t_raw, dtype=float)
-    return bool(np.all(t == np.round(t)) and np.median(np.diff(t)) == 1.0)
+    if not np.all(t == np.round(t)):
+        return False
+    return bool(np.median(np.diff(t)) == 1.0 or _COUNTER_NAME.search(column))
 
 
 # --------------------------------------------------------------------------- one CSV per sensor
