@@ -48,7 +48,7 @@ def test_a_no_nanny_worker_has_one_blas_thread_after_joining(tmp_path):
     from magyro.dask_worker import blas_threads
     from magyro.executor import DaskCluster
 
-    with distributed.LocalCluster(n_workers=0, dashboard_address=None, silence_logs=40) as cluster:
+    with distributed.LocalCluster(n_workers=0, dashboard_address=":0", silence_logs=40) as cluster:
         worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", cluster.scheduler_address,
                                    "--no-nanny", "--nthreads", "1", "--no-dashboard"],
                                   env=env_without_thread_limits(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

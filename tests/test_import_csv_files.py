@@ -461,13 +461,23 @@ def test_real_sensor_logger_iphone_calibrated_files(tmp_path):
     np.testing.assert_array_equal(z_session.t_mag_s, s.t_mag_s)
 
 
-def test_real_x_io_csv_through_plain_import(tmp_path):
-    """Fusion's sensor_data.csv ("Time (s)", "Gyroscope X (deg/s)", ...): read by its units, not taken for phyphox."""
-    src = wild("fusion") / "sensor_data.csv"
+SHIPPED_WILD = Path(__file__).resolve().parents[1] / "data" / "wild"
+
+
+def test_shipped_x_io_csv_through_plain_import(tmp_path):
+    """The shipped data/wild/fusion/sensor_data.csv (x-io IMU, MIT; "Time (s)", "Gyroscope X (deg/s)", ...): read
+    by its units, not taken for phyphox; 135 s at 100 Hz, gravity 1 g, a field of Earth's strength in uT."""
+    src = SHIPPED_WILD / "fusion" / "sensor_data.csv"
+    before = digest([src])
     r = cli(src, "-o", tmp_path / "f.parquet", "--gyro-unit", "deg/s", "--mag-unit", "uT", "--acc-unit", "g")
     assert r.exit_code == 0 and "read as" not in r.output, r.output
+    assert digest([src]) == before
     s = load_session(tmp_path / "f.parquet")
-    assert len(s.t_gyro_s) == 13514 and 9.6 < float(np.median(np.linalg.norm(s.acc_m_s2, axis=1))) < 10.0
+    assert len(s.t_gyro_s) == 13514 and s.gyro_rate_hz == pytest.approx(100.0, rel=0.01)
+    assert s.duration_s == pytest.approx(135.3, abs=0.1)
+    assert 9.6 < float(np.median(np.linalg.norm(s.acc_m_s2, axis=1))) < 10.0
+    assert 25 < float(np.median(np.linalg.norm(s.mag, axis=1))) < 65  # Earth's field, uT
+    assert s.metadata["mag_unit"] == "uT"
 
 
 def test_x_imu_packet_numbers_are_a_counter_not_milliseconds(tmp_path):
