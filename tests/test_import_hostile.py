@@ -244,6 +244,7 @@ def one_file_csv(path: Path, bad_rows=(), value="1e300", column=1) -> Path:
     ("inf", 3, [5], "row 5, column gz holds inf, which no sensor reads (1 row(s)"),
     ("-1e12", 6, [7, 9], "row 7, column mz holds -1e+12, which no sensor reads (2 row(s)"),
     ("1e300", 0, [4], "row 4, column t holds 1e+300, which no sensor reads"),
+    ("18446744073709551000", 0, range(N_GYRO), "row 0, column t holds 1.84467e+19, which no sensor reads"),
 ])
 def test_absurd_readings_are_refused_by_row_without_warnings(value, column, rows, message, tmp_path):
     src = one_file_csv(tmp_path / "log.csv", set(rows), value, column)

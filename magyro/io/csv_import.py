@@ -102,7 +102,8 @@ def checked_rate_hz(rate_hz) -> float:
 
 def time_values(path, series: pd.Series, column: str) -> np.ndarray:
     """The time column as numbers (int64 kept exact for epoch ns stamps), all finite and below MAX_ABS_TIME."""
-    if pd.api.types.is_integer_dtype(series):
+    if pd.api.types.is_signed_integer_dtype(series) or (pd.api.types.is_unsigned_integer_dtype(series)
+                                                          and series.max() <= np.iinfo(np.int64).max):
         return series.to_numpy(dtype=np.int64)
     values = numbers(path, series, column, limit=MAX_ABS_TIME)
     bad = np.isnan(values)
