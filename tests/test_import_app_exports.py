@@ -86,6 +86,15 @@ def test_phyphox_files_given_to_plain_import_are_recognised_but_a_logger_csv_is_
     folder, t_gyro, _ = phyphox_export(tmp_path / "exp")
     r = cli(folder / "Gyroscope.csv", folder / "Magnetometer.csv", "-o", tmp_path / "p.parquet")
     assert r.exit_code == 0 and "read as a phyphox export" in r.output, r.output
+    r = cli(folder, "-o", tmp_path / "f.parquet")  # its folder too, by the files' headers (not their names)
+    assert r.exit_code == 0 and "read as a phyphox export" in r.output, r.output
+    archive = tmp_path / "exp.zip"
+    with zipfile.ZipFile(archive, "w") as z:
+        for f in sorted(folder.glob("*.csv")):
+            z.write(f, f.name)
+    text = refused(cli(archive, "-o", tmp_path / "z.parquet"))  # a zip is only peeked at for Sensor Logger's
+    assert "an app's export folder or zip is read with --preset sensor-logger|phyphox" in text, text
+    assert "found" not in text  # not taken for Sensor Logger files, whose names phyphox shares
     # "Time (s)" with axes in units, but several sensors and deg/s: an ordinary logger CSV, read by its units
     mixed = tmp_path / "log.csv"
     g, m = gyro_rad_s(N_GYRO), mag_ut(N_GYRO)

@@ -223,22 +223,36 @@ def _needed(preset: str, missing: list[str]) -> str:
 
 
 def recognised_preset(sources, delimiter: str | None = None, header_line: int = 0) -> str | None:
-    """The preset whose layout every source has (Sensor Logger's time, seconds_elapsed, z, y, x; phyphox's
-    "Time (s)" with axes in units; a folder or zip holding Sensor Logger's files), or None."""
+    """The preset whose layout every source has (Sensor Logger's time, seconds_elapsed, z, y, x under its file
+    names; phyphox's "Time (s)" with one sensor's axes in units), or None; a folder is judged by its CSVs, a zip
+    by the first line of its Sensor Logger members."""
     sources = [Path(s) for s in sources]
     if not sources or not all(s.exists() for s in sources):
         return None
-    if all(s.is_dir() or is_zip(s) for s in sources):
-        return "sensor-logger" if all(_holds_sensor_logger_files(s) for s in sources) else None
+    if all(is_zip(s) for s in sources):
+        return "sensor-logger" if all(_zip_holds_sensor_logger_files(s) for s in sources) else None
+    if all(s.is_dir() for s in sources):
+        files = [p for s in sources for p in sorted(s.glob("*.csv")) + sorted(s.glob("*.CSV"))]
+        logger = [p for p in files if _is_sensor_logger_member(p.name)]
+        if logger and _all_in_layout(logger, "sensor-logger", delimiter, header_line):
+            return "sensor-logger"
+        phyphox = [p for p in files if _is_phyphox_layout(p, csv_header(p, delimiter, header_line), delimiter,
+                                                          header_line)]
+        return "phyphox" if len(phyphox) >= 2 else None
     if not all(s.is_file() and not is_zip(s) for s in sources):
         return None
-    headers = [csv_header(s, delimiter, header_line) for s in sources]
-    if all(is_sensor_logger_header(h) and "seconds_elapsed" in h and _is_sensor_logger_member(s.name)
-           for s, h in zip(sources, headers)):
-        return "sensor-logger"
-    if all(_is_phyphox_layout(s, h, delimiter, header_line) for s, h in zip(sources, headers)):
-        return "phyphox"
+    for preset in PRESETS:
+        if _all_in_layout(sources, preset, delimiter, header_line):
+            return preset
     return None
+
+
+def _all_in_layout(files: list[Path], preset: str, delimiter, header_line) -> bool:
+    headers = [csv_header(f, delimiter, header_line) for f in files]
+    if preset == "sensor-logger":
+        return all(_is_sensor_logger_member(f.name) and is_sensor_logger_header(h) and "seconds_elapsed" in h
+                   for f, h in zip(files, headers))
+    return all(_is_phyphox_layout(f, h, delimiter, header_line) for f, h in zip(files, headers))
 
 
 def _is_phyphox_layout(path: Path, header: list[str], delimiter, header_line) -> bool:
@@ -250,15 +264,29 @@ def _is_phyphox_layout(path: Path, header: list[str], delimiter, header_line) ->
     return all(c in found.columns.values() or c.lower().startswith("absolute") for c in header)
 
 
-def _holds_sensor_logger_files(source: Path) -> bool:
-    import zipfile
+_HEADER_PEEK_BYTES = 4096
 
-    if source.is_dir():
-        names = [p.name for p in source.iterdir()]
-    else:
-        with zipfile.ZipFile(source) as z:
-            names = [Path(n).name for n in z.namelist()]
-    return any(_is_sensor_logger_member(n) for n in names if n.lower().endswith(".csv"))
+
+def _zip_holds_sensor_logger_files(archive: Path) -> bool:
+    """Sensor Logger's file names whose first line is its header (at most 4 kB inflated per member); a member
+    that cannot be read counts as one, so that the preset's unpacking names what is wrong with it."""
+    import zipfile
+    import zlib
+
+    with zipfile.ZipFile(archive) as z:
+        members = [i for i in z.infolist() if i.filename.lower().endswith(".csv")
+                   and _is_sensor_logger_member(Path(i.filename).name)]
+        for info in members:
+            try:
+                with z.open(info) as f:
+                    first = f.read(_HEADER_PEEK_BYTES).decode("utf-8", "replace").lstrip("\ufeff").splitlines()
+            except (RuntimeError, NotImplementedError, zipfile.BadZipFile, zlib.error, EOFError):
+                # encrypted, an unknown compression, damaged: the preset's unpacking refuses it by name
+                return True
+            header = [c.strip() for c in first[0].split(",")] if first else []
+            if not (is_sensor_logger_header(header) and "seconds_elapsed" in header):
+                return False
+        return bool(members)
 
 
 _PRESET_UNITS = {"sensor-logger": ("rad/s", "uT"), "phyphox": ("rad/s", "uT")}
@@ -322,6 +350,10 @@ def convert_csv(sources, output, *, preset: str | None = None, column_map_items=
                 note = f"read as a {_APP_NAMES[chosen]} export (--preset {chosen})"
                 session.metadata["sensor_note"] = "; ".join(x for x in (note, session.metadata.get("sensor_note")) if x)
         else:
+            folders = [str(s) for s in sources if s.is_dir() or is_zip(s)]
+            if folders:
+                raise InputError(f"{', '.join(folders)}: an app's export folder or zip is read with --preset "
+                                 f"sensor-logger|phyphox; give other CSV files one by one")
             missing = [name for name, value in (("--gyro-unit", gyro_unit), ("--mag-unit", mag_unit)) if value is None]
             if missing:
                 raise InputError(f"give {' and '.join(missing)} (the units of the CSV columns), or --preset "
