@@ -4,6 +4,7 @@ when refused; a zip bomb never reaches memory (caps on what members inflate to, 
 from __future__ import annotations
 
 import hashlib
+import json
 import struct
 import sys
 import warnings
@@ -19,8 +20,8 @@ from magyro.errors import InputError
 from magyro.io import import_csv, import_preset, load_session
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_import_csv_files import (GYRO_STEP_NS, N_GYRO, T0_NS, gyro_rad_s, mag_ut, phyphox_export,  # noqa: E402
-                                   sensor_logger_csv, sensor_logger_export)
+from test_import_csv_files import (GYRO_STEP_NS, N_GYRO, N_MAG, T0_NS, gyro_rad_s, mag_ut,  # noqa: E402
+                                   phyphox_export, sensor_logger_csv, sensor_logger_export)
 
 
 def digest(paths) -> dict:
@@ -134,6 +135,19 @@ def test_a_zip_with_a_lying_size_never_inflates_past_the_cap(tmp_path, monkeypat
     patch_headers(archive, size=1000)
     text = refused(tmp_path, archive, "--preset", "sensor-logger")
     assert "member GyroscopeUncalibrated.csv" in text and ("damaged" in text or "cap" in text), text
+
+
+def test_members_whose_names_no_file_system_holds_are_unpacked_under_plain_names(tmp_path):
+    """A 300-character member name (and one going up with ../) is read, not 'cannot write output'."""
+    folder, _, _ = phyphox_export(tmp_path / "exp")
+    archive = tmp_path / "exp.zip"
+    with zipfile.ZipFile(archive, "w") as z:
+        z.write(folder / "Gyroscope.csv", "G" * 300 + ".csv")
+        z.write(folder / "Magnetometer.csv", "../../Magnetometer.csv")
+    s = import_preset([archive], "phyphox")
+    np.testing.assert_allclose(s.gyro_rad_s, gyro_rad_s(N_GYRO), rtol=1e-9)
+    np.testing.assert_allclose(s.mag, mag_ut(N_MAG), rtol=1e-9)
+    assert json.loads(s.metadata["sensor_files"])["magnetometer"] == f"{archive}:../../Magnetometer.csv"
 
 
 def test_only_the_apps_files_are_unpacked_from_its_zip(tmp_path, monkeypatch):

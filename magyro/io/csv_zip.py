@@ -83,7 +83,7 @@ def _unpacked(z: zipfile.ZipFile, archive: Path, info: zipfile.ZipInfo, folder: 
     """The member streamed to folder/NAME, counting inflated bytes against the caps (the header may lie);
     `budget` holds the bytes all members may still inflate to."""
     where = f"{archive}: member {info.filename}"
-    target = folder / Path(info.filename).name
+    target = folder / _local_name(Path(info.filename).name)
     folder.mkdir(parents=True, exist_ok=True)
     written = 0
     try:
@@ -105,6 +105,17 @@ def _unpacked(z: zipfile.ZipFile, archive: Path, info: zipfile.ZipInfo, folder: 
         raise InputError(f"{where} is damaged (cannot be inflated: {one_line(exc)}); the zip is corrupt: "
                          f"export or copy it again") from None
     return target, f"{archive}:{info.filename}"
+
+
+MAX_LOCAL_NAME_BYTES = 200
+
+
+def _local_name(name: str) -> str:
+    """The member's own file name to unpack it under (an app's files are recognised by it), or, when the file
+    system could not hold it (too long, control characters), a plain one."""
+    if name.isprintable() and len(name.encode("utf-8", "surrogateescape")) <= MAX_LOCAL_NAME_BYTES:
+        return name
+    return "member.csv"
 
 
 def _mib(n_bytes: int) -> str:
