@@ -68,13 +68,16 @@ class MagyroWorker(WorkerPlugin):
         return None
 
 
+# magyro.executor.WORKER_THREAD_VARIABLES (not imported: the executor imports this module)
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
+                    "NUMEXPR_NUM_THREADS")
+
+
 def one_blas_thread() -> dict[str, int]:
     """One BLAS/OpenMP thread in this process, whatever started it: {library: threads} after the change."""
     from threadpoolctl import threadpool_limits
 
-    from magyro.executor import single_threaded_worker
-
-    single_threaded_worker()  # the thread variables, for libraries loaded from now on
+    os.environ.update({name: "1" for name in THREAD_VARIABLES})  # for libraries loaded from now on
     import numpy  # noqa: F401  (its BLAS loaded, so that its pool is the one limited)
 
     threadpool_limits(limits=1)  # called, not entered: the limit stays for the worker's life

@@ -9,8 +9,14 @@ import sys
 
 import pytest
 
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
-                    "NUMEXPR_NUM_THREADS")
+from magyro.executor import WORKER_THREAD_VARIABLES as THREAD_VARIABLES
+
+
+def test_the_worker_sets_the_pools_thread_variables():
+    pytest.importorskip("distributed", reason="the plugin needs dask.distributed (magyro[dask])")
+    from magyro.dask_worker import THREAD_VARIABLES as worker_variables
+
+    assert worker_variables == THREAD_VARIABLES
 
 
 def env_without_thread_limits() -> dict:
