@@ -8,7 +8,12 @@ Registered by `magyro.executor.DaskCluster` when it connects; every worker that 
   with MALLOC_TRIM_THRESHOLD_=65536, which also fixes the mmap threshold at 128 KiB, so every
   array of a solve is mapped and unmapped anew: measured on the 2-core machine, a 100 s
   production-line solve took 1.15 s in such a worker against 0.68 s in a plain process, and
-  0.75 s after `mallopt` (M_MMAP_THRESHOLD 32 MiB, M_TRIM_THRESHOLD 64 MiB). Numbers are unchanged.
+  0.75 s after `mallopt` (M_MMAP_THRESHOLD 32 MiB, M_TRIM_THRESHOLD 64 MiB). Numbers are unchanged;
+- pins BLAS/OpenMP to one thread, as the local pool's workers have (`one_blas_thread`). A nanny sets
+  the thread variables before the worker starts; a worker started with `dask worker --no-nanny`
+  has numpy's OpenBLAS running one thread per core, and its sums come out in another order: batch
+  results then differed from the local pool's by up to 1.2e-9. threadpoolctl sets the thread
+  count of the libraries already loaded; the variables cover those loaded later.
 """
 from __future__ import annotations
 
@@ -42,6 +47,7 @@ class MagyroWorker(WorkerPlugin):
         return cls(libraries)
 
     def setup(self, worker=None) -> None:
+        one_blas_thread()
         ordinary_malloc()
         self.write_kernels()
 
@@ -60,6 +66,29 @@ class MagyroWorker(WorkerPlugin):
 
     def teardown(self, worker=None) -> None:
         return None
+
+
+# magyro.executor.WORKER_THREAD_VARIABLES (not imported: the executor imports this module)
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
+                    "NUMEXPR_NUM_THREADS")
+
+
+def one_blas_thread() -> dict[str, int]:
+    """One BLAS/OpenMP thread in this process, whatever started it: {library: threads} after the change."""
+    from threadpoolctl import threadpool_limits
+
+    os.environ.update({name: "1" for name in THREAD_VARIABLES})  # for libraries loaded from now on
+    import numpy  # noqa: F401  (its BLAS loaded, so that its pool is the one limited)
+
+    threadpool_limits(limits=1)  # called, not entered: the limit stays for the worker's life
+    return blas_threads()
+
+
+def blas_threads() -> dict[str, int]:
+    """{threading library (openblas, openmp, mkl, ...): its thread count} in this process."""
+    from threadpoolctl import threadpool_info
+
+    return {info["internal_api"]: info["num_threads"] for info in threadpool_info()}
 
 
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3      # glibc's mallopt parameters

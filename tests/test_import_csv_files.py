@@ -306,3 +306,4 @@ def test_parse_file_column_map_names_files_by_name_or_path(tmp_path):
     assert got == {0: {"gx": "x"}, 1: {"t": "time", "mx": "a:b"}}
     with pytest.raises(InputError, match="say which file"):
         parse_file_column_map(["gx=other.csv:x"], paths)
+

@@ -501,7 +501,7 @@ def test_magyro_io_imports_each_name_on_first_use():
             "print(io.import_csv.__module__, io.convert_broad.__module__, heavy())\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.splitlines() == ["[]", "[]", "['pyarrow']",
-                                       "magyro.io.csv_export magyro.io.broad ['pyarrow', 'pandas']"], out.stdout
+                                       "magyro.io.csv_import magyro.io.broad ['pyarrow', 'pandas']"], out.stdout
 
 
 def test_every_public_name_of_magyro_io_is_what_it_says():
@@ -513,7 +513,8 @@ def test_every_public_name_of_magyro_io_is_what_it_says():
     import magyro.io
 
     code = ("import importlib, inspect, magyro.io as io\n"
-            "for m in ('atomic', 'broad', 'checks', 'columns', 'csv_export', 'cutting', 'session_file'):\n"
+            "for m in ('atomic', 'broad', 'checks', 'columns', 'csv_columns', 'csv_import', 'csv_text', 'csv_units', "
+            "'csv_zip', 'cutting', 'session_file'):\n"
             "    importlib.import_module('magyro.io.' + m)\n"
             "print(sorted(n for n in io.__all__ if inspect.ismodule(getattr(io, n))))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

@@ -50,6 +50,7 @@ def import_csv_command(
     header_line: int = typer.Option(0, "--header-line", min=0, help="Lines before the header of every file (a preamble)."),
     start: Optional[float] = typer.Option(None, "--start", help="Drop samples before this time (s after the first stamp)."),
     end: Optional[float] = typer.Option(None, "--end", help="Drop samples after this time (s)."),
+    rate: Optional[float] = typer.Option(None, "--rate", help="Sampling rate in Hz of one CSV whose time column is a sample counter (or which has none): t = count / rate."),
 ):
     """A phone or logger CSV export (one file, or one file per sensor, or an app's export by --preset) as a session file."""
     from magyro.io.csv_presets import convert_csv
@@ -57,7 +58,7 @@ def import_csv_command(
     def action():
         s = convert_csv(sources, output, preset=preset, column_map_items=column_map, gyro_unit=gyro_unit,
                         mag_unit=mag_unit, time_unit=time_unit, acc_unit=acc_unit, delimiter=delimiter,
-                        skip_rows=skip_rows, header_line=header_line, start_s=start, end_s=end)
+                        skip_rows=skip_rows, header_line=header_line, start_s=start, end_s=end, rate_hz=rate)
         typer.echo(f"session written to {output}: {len(s.t_gyro_s)} gyro samples ({s.gyro_rate_hz:.1f} Hz), "
                    f"{len(s.t_mag_s)} magnetometer samples ({s.mag_rate_hz:.1f} Hz), {s.duration_s:.1f} s; "
                    f"columns {s.metadata['column_map']}")

@@ -5,9 +5,10 @@
   (`magyro.io.session_file`; the checks are `magyro.io.checks`, the column layout
   `magyro.io.columns`.)
 - `import_broad`, `import_broad_movement`, `broad_movement_span`, `convert_broad`: BROAD
-  benchmark trials (`magyro.io.broad`). `import_csv`, `guess_column_map`,
-  `parse_column_map`: phone and logger CSV exports (`magyro.io.csv_export`);
-  `import_csv_files`, `parse_file_column_map`: one CSV per sensor merged on time;
+  benchmark trials (`magyro.io.broad`). `import_csv`: phone and logger CSV exports,
+  `import_csv_files`: one CSV per sensor merged on time (`magyro.io.csv_import`; the text read by
+  `magyro.io.csv_text`, units in `magyro.io.csv_units`, zips unpacked within caps by `magyro.io.csv_zip`);
+  `guess_column_map`, `parse_column_map`, `parse_file_column_map`: which column is which (`magyro.io.csv_columns`);
   `import_preset`, `PRESETS`: the Sensor Logger and phyphox exports, `convert_csv`: `magyro import csv`
   (`magyro.io.csv_presets`).
 - `trim`, `cut`, `decimate`: a session cut in time or rate (`magyro.io.cutting`).
@@ -35,8 +36,8 @@ _EXPORTS = {
     "write_text_atomically": "atomic", "write_atomically": "atomic", "check_outputs": "atomic",
     "import_broad": "broad", "import_broad_movement": "broad", "broad_movement_span": "broad",
     "convert_broad": "broad", "BROAD_CITATION": "broad", "BROAD_LICENSE": "broad",
-    "import_csv": "csv_export", "guess_column_map": "csv_export", "parse_column_map": "csv_export",
-    "import_csv_files": "csv_export", "parse_file_column_map": "csv_export",
+    "import_csv": "csv_import", "guess_column_map": "csv_columns", "parse_column_map": "csv_columns",
+    "import_csv_files": "csv_import", "parse_file_column_map": "csv_columns",
     "import_preset": "csv_presets", "PRESETS": "csv_presets", "convert_csv": "csv_presets",
     "import_ulog": "ulog", "convert_ulog": "ulog",
     "import_rosbag": "rosbag", "convert_rosbag": "rosbag",
@@ -56,8 +57,8 @@ if TYPE_CHECKING:
     from magyro.io.broad import (BROAD_CITATION, BROAD_LICENSE, broad_movement_span, convert_broad, import_broad,
                                  import_broad_movement)
     from magyro.io.checks import MAX_PLAUSIBLE_RATE_RAD_S, MIN_SAMPLES, session_from_table
-    from magyro.io.csv_export import (guess_column_map, import_csv, import_csv_files, parse_column_map,
-                                      parse_file_column_map)
+    from magyro.io.csv_columns import guess_column_map, parse_column_map, parse_file_column_map
+    from magyro.io.csv_import import import_csv, import_csv_files
     from magyro.io.csv_presets import PRESETS, convert_csv, import_preset
     from magyro.io.cutting import cut, decimate, trim
     from magyro.io.session_file import PARQUET_SUFFIXES, load_session, session_table, write_imported, write_session

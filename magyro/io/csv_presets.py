@@ -3,13 +3,19 @@
 A preset knows an app's export: which file holds which sensor, the column names, the units
 and the time column, so no --gyro-unit/--mag-unit/--map is needed. The sources are the
 per-sensor CSV files, or the export folder, or the zip the app writes (read in place,
-never changed).
+never changed); a zip is unpacked with caps on what it inflates to (`magyro.io.csv_zip`).
+
+Without --preset, `recognised_preset(sources)` finds files in either app's layout (Sensor
+Logger's `time, seconds_elapsed, z, y, x`; phyphox's `"Time (s)"` and axes with units), and
+`magyro import csv` reads them by that preset.
 
 - `sensor-logger` (Sensor Logger by Kelvin Choi, Android/iOS): GyroscopeUncalibrated.csv or
   Gyroscope.csv (rad/s), MagnetometerUncalibrated.csv or Magnetometer.csv (uT), optional
+  AccelerometerUncalibrated.csv (with gravity; g on iOS, m/s^2 on Android: told from |a|) or
   TotalAcceleration.csv (m/s^2, with gravity); columns time (epoch ns), seconds_elapsed, z,
   y, x. The uncalibrated sensors are preferred when both are present: for a calibration the
   phone's own bias correction must not be in the data. The metadata says which were used.
+  The zip may hold the CSVs at its top level or in a folder.
 - `phyphox` (RWTH Aachen): one file per sensor of one experiment, "Time (s)" (the
   experiment clock, shared by its sensors) and axis columns whose unit says the sensor:
   "Gyroscope x (rad/s)" or "X (rad/s)", "Magnetic Field x (µT)" or "X (µT)",
@@ -20,12 +26,13 @@ from __future__ import annotations
 
 import re
 import tempfile
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from magyro.errors import InputError
-from magyro.io.csv_export import csv_header, import_csv_files
+from magyro.io.csv_import import ACC_AUTO, import_csv_files
+from magyro.io.csv_text import checked_read_options, csv_header
+from magyro.io.csv_zip import is_zip, unpack_csv_members
 from magyro.session import Session
 
 PRESETS = ("sensor-logger", "phyphox")
@@ -42,6 +49,7 @@ class SensorFile:
     group: str
     columns: dict  # session name -> column
     note: str = ""
+    acc_unit_from_gravity: bool = False  # g or m/s^2, told from |a| (Sensor Logger's AccelerometerUncalibrated.csv)
 
 
 # --------------------------------------------------------------------------- entry point
@@ -52,16 +60,18 @@ def import_preset(sources, preset: str, skip_rows: int = 0, header_line: int = 0
     """An app's export (its per-sensor CSV files, its folder or its zip) as a Session, by `preset`."""
     if preset not in PRESETS:
         raise InputError(f"unknown preset {preset!r}; the presets are {', '.join(PRESETS)}")
+    delimiter = checked_read_options(delimiter, skip_rows, header_line)
     sources = [Path(s) for s in sources]
     with tempfile.TemporaryDirectory(prefix="magyro-csv-") as unpacked:
-        files = _csv_files(sources, Path(unpacked))
-        explicit = not any(s.is_dir() or zipfile.is_zipfile(s) for s in sources if s.exists())
+        files = _csv_files(sources, Path(unpacked), _WANTED[preset])
+        explicit = not any(s.is_dir() or is_zip(s) for s in sources)
         chosen = _chosen_files(preset, files, explicit, delimiter, header_line)
         units = {"sensor-logger": dict(time_unit="ns"), "phyphox": dict(time_unit="s")}[preset]
+        acc_unit = ACC_AUTO if any(f.acc_unit_from_gravity for f in chosen) else "m/s^2"
         extra = {"preset": preset, "source_given": ", ".join(map(str, sources)),
                  "sensor_note": "; ".join(f.note for f in chosen if f.note)}
         return import_csv_files([f.path for f in chosen], {i: f.columns for i, f in enumerate(chosen)},
-                                gyro_unit="rad/s", mag_unit="uT", acc_unit="m/s^2", delimiter=delimiter,
+                                gyro_unit="rad/s", mag_unit="uT", acc_unit=acc_unit, delimiter=delimiter,
                                 skip_rows=skip_rows, header_line=header_line,
                                 labels=[f.label for f in chosen], extra_metadata=extra, **units)
 
@@ -84,32 +94,21 @@ def _chosen_files(preset: str, files: list[tuple[Path, str]], explicit: bool, de
 # --------------------------------------------------------------------------- sources
 
 
-def _csv_files(sources: list[Path], unpack_to: Path) -> list[tuple[Path, str]]:
-    """(path to read, label) of every CSV given: files as given, a folder's *.csv, a zip's *.csv (unpacked)."""
+def _csv_files(sources: list[Path], unpack_to: Path, wanted=lambda name: True) -> list[tuple[Path, str]]:
+    """(path to read, label) of every CSV given: files as given, a folder's *.csv, a zip's *.csv that
+    `wanted(file name)` (unpacked under `unpack_to`, within the caps of `magyro.io.csv_zip`)."""
     files = []
     for source in sources:
         if source.is_dir():
             files += [(p, str(p)) for p in sorted(source.glob("*.csv")) + sorted(source.glob("*.CSV"))]
-        elif source.is_file() and zipfile.is_zipfile(source):
-            files += _zip_csv_files(source, unpack_to / f"{len(files)}")
+        elif is_zip(source):
+            files += unpack_csv_members(source, unpack_to / f"{len(files)}", wanted)
+        elif source.suffix.lower() == ".zip" and source.is_file():
+            raise InputError(f"{source}: not a readable zip (no zip directory at its end: cut short, or not a zip); "
+                             f"copy or export it again")
         else:
             files.append((source, str(source)))
     return files
-
-
-def _zip_csv_files(archive: Path, unpack_to: Path) -> list[tuple[Path, str]]:
-    """The zip's CSV members outside meta/ folders, unpacked to `unpack_to`, labelled ARCHIVE:MEMBER."""
-    out = []
-    with zipfile.ZipFile(archive) as z:
-        for i, member in enumerate(sorted(z.namelist())):
-            parts = Path(member).parts
-            if not member.lower().endswith(".csv") or "meta" in parts[:-1] or parts[0] == "__MACOSX":
-                continue
-            target = unpack_to / f"{i}" / Path(member).name
-            target.parent.mkdir(parents=True, exist_ok=True)
-            target.write_bytes(z.read(member))
-            out.append((target, f"{archive}:{member}"))
-    return out
 
 
 def _preferred_per_sensor(preset: str, found: list[SensorFile]) -> list[SensorFile]:
@@ -128,7 +127,7 @@ def _preferred_per_sensor(preset: str, found: list[SensorFile]) -> list[SensorFi
 
 
 def _is_uncalibrated(f: SensorFile) -> bool:
-    return "uncalibrated" in Path(f.label).name.lower()
+    return "uncalibrated" in f.path.name.lower()
 
 
 # --------------------------------------------------------------------------- Sensor Logger
@@ -140,13 +139,15 @@ _SENSOR_LOGGER = {  # file stem (lower case) -> sensor, note for the metadata
     "magnetometeruncalibrated": ("magnetometer", "magnetometer from MagnetometerUncalibrated.csv (uncalibrated)"),
     "magnetometer": ("magnetometer", "magnetometer from Magnetometer.csv (calibrated by the phone; "
                                      "MagnetometerUncalibrated.csv is better for a calibration)"),
+    "accelerometeruncalibrated": ("accelerometer", "accelerometer from AccelerometerUncalibrated.csv (with gravity; "
+                                                   "g on iOS, m/s^2 on Android, told from |a|)"),
     "totalacceleration": ("accelerometer", "accelerometer from TotalAcceleration.csv (with gravity)"),
 }
 _SENSOR_LOGGER_COLUMNS = ("time", "seconds_elapsed", "z", "y", "x")
 
 
 def _sensor_logger_file(path: Path, label: str, delimiter, header_line, explicit: bool) -> SensorFile | None:
-    kind = _SENSOR_LOGGER.get(Path(label).stem.lower())
+    kind = _SENSOR_LOGGER.get(path.stem.lower())  # the file's own name: a zip member's label is ARCHIVE:MEMBER
     if kind is None:
         if explicit:
             raise InputError(f"{label}: not a file the sensor-logger preset reads; it reads "
@@ -155,16 +156,28 @@ def _sensor_logger_file(path: Path, label: str, delimiter, header_line, explicit
         return None
     group, note = kind
     header = csv_header(path, delimiter, header_line)
-    if not {"time", "x", "y", "z"} <= set(header):
+    if not is_sensor_logger_header(header):
         raise InputError(f"{label}: not a Sensor Logger {group} export: expected the columns "
                          f"{', '.join(_SENSOR_LOGGER_COLUMNS)}, found {', '.join(header) or '(none)'}")
     columns = {"t": "time", **dict(zip(_GROUP_COLUMNS[group], ("x", "y", "z")))}
-    return SensorFile(path, label, group, columns, note)
+    return SensorFile(path, label, group, columns, note,
+                      acc_unit_from_gravity=path.stem.lower() == "accelerometeruncalibrated")
+
+
+def is_sensor_logger_header(header: list[str]) -> bool:
+    return {"time", "x", "y", "z"} <= set(header)
 
 
 def _sensor_logger_names() -> list[str]:
     return ["GyroscopeUncalibrated.csv", "Gyroscope.csv", "MagnetometerUncalibrated.csv", "Magnetometer.csv",
-            "TotalAcceleration.csv"]
+            "AccelerometerUncalibrated.csv", "TotalAcceleration.csv"]
+
+
+def _is_sensor_logger_member(name: str) -> bool:
+    return Path(name).stem.lower() in _SENSOR_LOGGER
+
+
+_WANTED = {"sensor-logger": _is_sensor_logger_member, "phyphox": lambda name: True}
 
 
 # --------------------------------------------------------------------------- phyphox
@@ -184,7 +197,7 @@ def _phyphox_file(path: Path, label: str, delimiter, header_line, explicit: bool
         if m and m.group(2).strip().lower() in _PHYPHOX_UNITS:
             axes.setdefault(_PHYPHOX_UNITS[m.group(2).strip().lower()], {})[m.group(1).lower()] = column
     complete = [g for g, cols in axes.items() if set(cols) == {"x", "y", "z"}]
-    linear = any("linear" in c.lower() for c in header) or "linear" in Path(label).name.lower()
+    linear = any("linear" in c.lower() for c in header) or "linear" in path.name.lower()
     if len(time_columns) != 1 or len(complete) != 1 or linear:
         if not explicit:
             return None
@@ -193,7 +206,7 @@ def _phyphox_file(path: Path, label: str, delimiter, header_line, explicit: bool
         raise InputError(f"{label}: not a phyphox sensor export the phyphox preset reads: {why}")
     group = complete[0]
     columns = {"t": time_columns[0], **{name: axes[group][a] for name, a in zip(_GROUP_COLUMNS[group], "xyz")}}
-    return SensorFile(path, label, group, columns, f"{group} from {Path(label).name}")
+    return SensorFile(path, label, group, columns, f"{group} from {path.name}")
 
 
 def _needed(preset: str, missing: list[str]) -> str:
@@ -206,31 +219,141 @@ def _needed(preset: str, missing: list[str]) -> str:
     return " and ".join(f"a {m} file with \"Time (s)\" and {units[m]}" for m in missing)
 
 
+# --------------------------------------------------------------------------- recognised without --preset
+
+
+def recognised_preset(sources, delimiter: str | None = None, header_line: int = 0) -> str | None:
+    """The preset whose layout every source has (Sensor Logger's time, seconds_elapsed, z, y, x under its file
+    names; phyphox's "Time (s)" with one sensor's axes in units), or None; a folder is judged by its CSVs, a zip
+    by the first line of its Sensor Logger members."""
+    sources = [Path(s) for s in sources]
+    if not sources or not all(s.exists() for s in sources):
+        return None
+    if all(is_zip(s) for s in sources):
+        return "sensor-logger" if all(_zip_holds_sensor_logger_files(s) for s in sources) else None
+    if all(s.is_dir() for s in sources):
+        files = [p for s in sources for p in sorted(s.glob("*.csv")) + sorted(s.glob("*.CSV"))]
+        logger = [p for p in files if _is_sensor_logger_member(p.name)]
+        if logger and _all_in_layout(logger, "sensor-logger", delimiter, header_line):
+            return "sensor-logger"
+        phyphox = [p for p in files if _is_phyphox_layout(p, csv_header(p, delimiter, header_line), delimiter,
+                                                          header_line)]
+        return "phyphox" if len(phyphox) >= 2 else None
+    if not all(s.is_file() and not is_zip(s) for s in sources):
+        return None
+    for preset in PRESETS:
+        if _all_in_layout(sources, preset, delimiter, header_line):
+            return preset
+    return None
+
+
+def _all_in_layout(files: list[Path], preset: str, delimiter, header_line) -> bool:
+    headers = [csv_header(f, delimiter, header_line) for f in files]
+    if preset == "sensor-logger":
+        return all(_is_sensor_logger_member(f.name) and is_sensor_logger_header(h) and "seconds_elapsed" in h
+                   for f, h in zip(files, headers))
+    return all(_is_phyphox_layout(f, h, delimiter, header_line) for f, h in zip(files, headers))
+
+
+def _is_phyphox_layout(path: Path, header: list[str], delimiter, header_line) -> bool:
+    """A phyphox sensor file and nothing else: "Time (s)", one sensor's x y z, and perhaps its "Absolute" column
+    (a logger's CSV holding several sensors, in other units too, is no phyphox export)."""
+    found = _phyphox_file(path, str(path), delimiter, header_line, explicit=False)
+    if found is None:
+        return False
+    return all(c in found.columns.values() or c.lower().startswith("absolute") for c in header)
+
+
+_HEADER_PEEK_BYTES = 4096
+
+
+def _zip_holds_sensor_logger_files(archive: Path) -> bool:
+    """Sensor Logger's file names whose first line is its header (at most 4 kB inflated per member); a member
+    that cannot be read counts as one, so that the preset's unpacking names what is wrong with it."""
+    import zipfile
+    import zlib
+
+    with zipfile.ZipFile(archive) as z:
+        members = [i for i in z.infolist() if i.filename.lower().endswith(".csv")
+                   and _is_sensor_logger_member(Path(i.filename).name)]
+        for info in members:
+            try:
+                with z.open(info) as f:
+                    first = f.read(_HEADER_PEEK_BYTES).decode("utf-8", "replace").lstrip("\ufeff").splitlines()
+            except (RuntimeError, NotImplementedError, zipfile.BadZipFile, zlib.error, EOFError):
+                # encrypted, an unknown compression, damaged: the preset's unpacking refuses it by name
+                return True
+            header = [c.strip() for c in first[0].split(",")] if first else []
+            if not (is_sensor_logger_header(header) and "seconds_elapsed" in header):
+                return False
+        return bool(members)
+
+
+_PRESET_UNITS = {"sensor-logger": ("rad/s", "uT"), "phyphox": ("rad/s", "uT")}
+_APP_NAMES = {"sensor-logger": "Sensor Logger", "phyphox": "phyphox"}
+
+
+def _recognised_or_refused(sources, preset: str, gyro_unit, mag_unit) -> None:
+    """Sources in an app's layout are read by its preset; units given that are not the app's are refused."""
+    from magyro.io.csv_units import gyro_unit_label, mag_unit_label
+
+    app_gyro, app_mag = _PRESET_UNITS[preset]
+    wrong = [f"{option} {given}" for option, given, label, app in
+             (("--gyro-unit", gyro_unit, gyro_unit_label, app_gyro), ("--mag-unit", mag_unit, mag_unit_label, app_mag))
+             if given is not None and label("--preset", given) != label("--preset", app)]
+    if wrong:
+        raise InputError(f"{', '.join(map(str, sources))}: a {_APP_NAMES[preset]} export, whose gyro is in {app_gyro} and "
+                         f"magnetometer in {app_mag}, not {' and '.join(wrong)}; import it with --preset {preset} "
+                         f"and without --gyro-unit/--mag-unit")
+
+
 # --------------------------------------------------------------------------- the command
 
 
 def convert_csv(sources, output, *, preset: str | None = None, column_map_items=None, gyro_unit: str | None = None,
                 mag_unit: str | None = None, time_unit: str = "s", acc_unit: str = "m/s^2",
                 delimiter: str | None = None, skip_rows: int = 0, header_line: int = 0,
-                start_s: float | None = None, end_s: float | None = None) -> Session:
-    """`magyro import csv`: one CSV, one CSV per sensor, or an app's export (`preset`), cut to
-    [start_s, end_s] and written to `output` (`write_imported`). `column_map_items` are the CLI's
-    --map items (NAME=COLUMN, or NAME=FILE:COLUMN with several files). An `output` that is a source or
-    cannot be written is refused before anything is read. Returns the written session."""
-    from magyro.io.csv_export import import_csv, parse_column_map, parse_file_column_map
+                start_s: float | None = None, end_s: float | None = None, rate_hz: float | None = None) -> Session:
+    """`magyro import csv`: one CSV, one CSV per sensor, or an app's export (`preset`, or recognised without
+    one and without --map), cut to [start_s, end_s] and written to `output` (`write_imported`).
+    `column_map_items` are the CLI's --map items (NAME=COLUMN, or NAME=FILE:COLUMN with several files);
+    `rate_hz` (--rate) is the sampling rate of one CSV whose time is a sample counter (or absent). Unusable
+    options, and an `output` that is a source or cannot be written, are refused before anything is read.
+    Returns the written session; its metadata's sensor_note says when a preset was recognised."""
+    from magyro.io.csv_columns import parse_column_map, parse_file_column_map
+    from magyro.io.csv_import import checked_rate_hz, import_csv
     from magyro.io.cutting import cut
     from magyro.io.session_file import import_to_file
 
     sources = [Path(s) for s in sources]
+    delimiter = checked_read_options(delimiter, skip_rows, header_line)
+    if rate_hz is not None:
+        checked_rate_hz(rate_hz)
+        if preset is not None or len(sources) != 1:
+            raise InputError("--rate is for one CSV file whose time column is a sample counter (or which has none); "
+                             "leave it out with --preset or several files")
 
     def read() -> Session:
-        if preset is not None:
+        chosen, recognised = preset, False
+        if chosen is None and not column_map_items and rate_hz is None:
+            chosen = recognised_preset(sources, delimiter, header_line)
+            recognised = chosen is not None
+            if recognised:
+                _recognised_or_refused(sources, chosen, gyro_unit, mag_unit)
+        if chosen is not None:
             given = [name for name, value in (("--gyro-unit", gyro_unit), ("--mag-unit", mag_unit),
-                                              ("--map", column_map_items)) if value]
+                                              ("--map", column_map_items)) if value and not recognised]
             if given:
-                raise InputError(f"--preset {preset} knows the units and columns; leave out {', '.join(given)}")
-            session = import_preset(sources, preset, skip_rows=skip_rows, header_line=header_line, delimiter=delimiter)
+                raise InputError(f"--preset {chosen} knows the units and columns; leave out {', '.join(given)}")
+            session = import_preset(sources, chosen, skip_rows=skip_rows, header_line=header_line, delimiter=delimiter)
+            if recognised:
+                note = f"read as a {_APP_NAMES[chosen]} export (--preset {chosen})"
+                session.metadata["sensor_note"] = "; ".join(x for x in (note, session.metadata.get("sensor_note")) if x)
         else:
+            folders = [str(s) for s in sources if s.is_dir() or is_zip(s)]
+            if folders:
+                raise InputError(f"{', '.join(folders)}: an app's export folder or zip is read with --preset "
+                                 f"sensor-logger|phyphox; give other CSV files one by one")
             missing = [name for name, value in (("--gyro-unit", gyro_unit), ("--mag-unit", mag_unit)) if value is None]
             if missing:
                 raise InputError(f"give {' and '.join(missing)} (the units of the CSV columns), or --preset "
@@ -238,7 +361,7 @@ def convert_csv(sources, output, *, preset: str | None = None, column_map_items=
             units = dict(gyro_unit=gyro_unit, mag_unit=mag_unit, time_unit=time_unit, acc_unit=acc_unit,
                          delimiter=delimiter, skip_rows=skip_rows, header_line=header_line)
             if len(sources) == 1:
-                session = import_csv(sources[0], parse_column_map(column_map_items), **units)
+                session = import_csv(sources[0], parse_column_map(column_map_items), rate_hz=rate_hz, **units)
             else:
                 session = import_csv_files(sources, parse_file_column_map(column_map_items, sources), **units)
         return cut(session, start_s, end_s)

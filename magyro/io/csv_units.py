@@ -1,0 +1,66 @@
+"""The units a CSV import accepts, by label: time, accelerometer and magnetometer (the gyro's are in `magyro.io.checks`).
+
+`time_factor`, `acc_factor`: seconds or m/s^2 per unit of the file; `mag_unit_label`: the
+canonical label of a magnetometer unit (the readings keep their unit); `gyro_unit_label`:
+rad/s or deg/s. Each refuses an unknown label with the list of known ones.
+"""
+from __future__ import annotations
+
+from magyro.errors import InputError
+from magyro.io.checks import canonical_gyro_unit
+
+TIME_UNITS = {"s": 1.0, "sec": 1.0, "second": 1.0, "seconds": 1.0,
+              "ms": 1e-3, "msec": 1e-3, "millisecond": 1e-3, "milliseconds": 1e-3,
+              "us": 1e-6, "µs": 1e-6, "μs": 1e-6, "usec": 1e-6, "microsecond": 1e-6, "microseconds": 1e-6,
+              "ns": 1e-9, "nsec": 1e-9, "nanosecond": 1e-9, "nanoseconds": 1e-9}
+ACC_UNITS = {"m/s^2": 1.0, "m/s2": 1.0, "m/s²": 1.0, "m/s/s": 1.0, "mps2": 1.0,
+             "g": 9.80665, "mg": 9.80665e-3}
+# the magnetometer keeps its unit (results come back in it); these are the labels accepted
+MAG_UNITS = {"ut": "uT", "µt": "uT", "μt": "uT", "microtesla": "uT", "nt": "nT", "nanotesla": "nT",
+             "mt": "mT", "millitesla": "mT", "t": "T", "tesla": "T",
+             "g": "G", "gauss": "G", "mg": "mG", "milligauss": "mG",
+             "counts": "counts", "count": "counts", "lsb": "counts", "raw": "counts", "adc": "counts",
+             "a.u.": "a.u.", "au": "a.u.", "arb": "a.u.", "unitless": "unitless", "1": "unitless",
+             "unknown": "unknown"}
+STANDARD_GRAVITY_M_S2 = 9.80665
+
+
+def canonical_key(unit: str) -> str:
+    return "".join(str(unit).split()).lower()
+
+
+def gyro_unit_label(where, unit: str) -> str:
+    try:
+        return canonical_gyro_unit(unit, "--gyro-unit")
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
+
+
+def mag_unit_label(where, unit: str) -> str:
+    key = canonical_key(unit)
+    if key not in MAG_UNITS:
+        known = sorted(set(MAG_UNITS.values()))
+        raise InputError(f"{where}: unknown magnetometer unit {unit!r}; use one of {', '.join(known)} "
+                         f"(the readings keep their unit, it is only a label)")
+    return MAG_UNITS[key]
+
+
+def unit_factor(where, unit: str, table: dict, what: str) -> float:
+    key = canonical_key(unit)
+    folded = {canonical_key(k): v for k, v in table.items()}
+    if key not in folded:
+        shown = ", ".join(dict.fromkeys(k for k in table if k.isascii()))
+        raise InputError(f"{where}: unknown {what} unit {unit!r}; use one of {shown}")
+    return folded[key]
+
+
+def time_factor(where, unit: str) -> float:
+    return unit_factor(where, unit, TIME_UNITS, "time")
+
+
+def acc_factor(where, unit: str) -> float:
+    return unit_factor(where, unit, ACC_UNITS, "accelerometer")
+
+
+def time_unit_label(factor: float) -> str:
+    return {1.0: "s", 1e-3: "ms", 1e-6: "us", 1e-9: "ns"}[factor]
