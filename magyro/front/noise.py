@@ -8,11 +8,16 @@ tau = 1 + 2 sum_k rho_k (in samples), the effective white std is
 s * sqrt(tau): one sample in tau carries independent information.
 
 From rests (when the session has them) both s and tau come straight from
-the still data. Otherwise, a third difference of a smooth signal sampled fast is nearly zero, while for
-white noise of std s it has std s * sqrt(20). A robust (MAD) scale of the
-third differences therefore estimates the white-noise std per axis, even
-while the device moves. Good enough to weight the least squares; users who
-know their sensor pass the numbers instead.
+the still data. Otherwise the only level the data give before a solve is the
+third differences' (`magyro.front.differences`): right while the motion is
+slow against the sample rate, far too large at a phone's 25-40 Hz. Such a
+level is a guess; the least squares then estimates both levels itself
+(variance components, `magyro.nls.variance`). Users who know their sensor
+pass the numbers instead.
+
+Where each level came from is kept per sensor (`LEVEL_SOURCES`): "given",
+"rest", "guess" here, "estimated by the solve" once the least squares has
+replaced a guess.
 """
 from __future__ import annotations
 
@@ -22,19 +27,12 @@ import numpy as np
 
 from magyro.errors import InputError
 from magyro.front import rests
+from magyro.front.differences import MAD_TO_STD, THIRD_DIFFERENCE_GAIN, white_noise_std  # noqa: F401 (re-exported)
 from magyro.options import Options
 from magyro.session import Session
 
-THIRD_DIFFERENCE_GAIN = np.sqrt(20.0)  # sqrt(1 + 9 + 9 + 1)
-MAD_TO_STD = 1.4826
-
-
-def white_noise_std(x: np.ndarray) -> np.ndarray:
-    """Per-column white-noise std of samples x (N, d) from robust third differences."""
-    d3 = np.diff(np.asarray(x, dtype=float), n=3, axis=0)
-    med = np.median(d3, axis=0)
-    mad = np.median(np.abs(d3 - med), axis=0)
-    return MAD_TO_STD * mad / THIRD_DIFFERENCE_GAIN
+GIVEN, REST, GUESS, ESTIMATED = "given", "rest", "guess", "estimated by the solve"
+LEVEL_SOURCES = (GIVEN, REST, GUESS, ESTIMATED)
 
 
 def mag_noise_std(y_mag: np.ndarray) -> float:
@@ -88,7 +86,9 @@ class NoiseLevels:
     gyro_sample_std_rad_s: float
     mag_std: float                 # effective: per-sample std * sqrt(autocorrelation time)
     gyro_density_rad_s_sqrt_hz: float
-    source: str
+    source: str                    # in words, for the table
+    gyro_source: str = GUESS       # one of LEVEL_SOURCES
+    mag_source: str = GUESS
 
 
 def noise_levels(session: Session, options: Options, found: rests.Rests) -> NoiseLevels:
@@ -102,16 +102,20 @@ def noise_levels(session: Session, options: Options, found: rests.Rests) -> Nois
         mag_eff = effective_std(still.mag_still)
         density = effective_std(still.gyro_still) / np.sqrt(rate)
         source = f"the {longest[1] - longest[0]:.1f} s rest (correlation included)"
+        gyro_source = mag_source = REST
     else:
         mag_sample = mag_eff = mag_noise_std(session.mag)
         density = gyro_noise_density_rad_s_sqrt_hz(session.gyro_rad_s, rate)
         gyro_sample = density * np.sqrt(rate)
-        source = "third differences (white noise assumed)"
+        source = "third differences (white noise assumed; a guess while the device moves)"
+        gyro_source = mag_source = GUESS
     if options.mag_noise_std:
         mag_sample = mag_eff = options.mag_noise_std
+        mag_source = GIVEN
     if options.gyro_noise_density_rad_s_sqrt_hz:
         density = options.gyro_noise_density_rad_s_sqrt_hz
         gyro_sample = density * np.sqrt(rate)
+        gyro_source = GIVEN
     if options.mag_noise_std or options.gyro_noise_density_rad_s_sqrt_hz:
         source = "given" if options.mag_noise_std and options.gyro_noise_density_rad_s_sqrt_hz else source + ", partly given"
     if not (mag_eff > 0 and density > 0):
@@ -119,4 +123,5 @@ def noise_levels(session: Session, options: Options, found: rests.Rests) -> Nois
             "cannot estimate the sensor noise from the data (the readings do not vary); "
             "pass --mag-noise and --gyro-noise"
         )
-    return NoiseLevels(float(mag_sample), float(gyro_sample), float(mag_eff), float(density), source)
+    return NoiseLevels(float(mag_sample), float(gyro_sample), float(mag_eff), float(density), source, gyro_source,
+                       mag_source)
