@@ -16,7 +16,9 @@ level is a guess; the least squares then estimates both levels itself
 pass the numbers instead.
 
 Where each level came from is kept per sensor (`LEVEL_SOURCES`): "given",
-"rest", "guess" here, "estimated by the solve" once the least squares has
+"rest", "differences" (the floor of the 3rd..8th differences' levels, where
+they stop falling: noise, not motion, `differences.noise_floor_std`), "guess"
+(still falling: the motion is too fast for the rate) here, "estimated by the solve" once the least squares has
 replaced a guess.
 """
 from __future__ import annotations
@@ -27,17 +29,23 @@ import numpy as np
 
 from magyro.errors import InputError
 from magyro.front import rests
-from magyro.front.differences import MAD_TO_STD, THIRD_DIFFERENCE_GAIN, white_noise_std  # noqa: F401 (re-exported)
+from magyro.front.differences import MAD_TO_STD, THIRD_DIFFERENCE_GAIN, noise_floor_std, white_noise_std  # noqa: F401
 from magyro.options import Options
 from magyro.session import Session
 
-GIVEN, REST, GUESS, ESTIMATED = "given", "rest", "guess", "estimated by the solve"
-LEVEL_SOURCES = (GIVEN, REST, GUESS, ESTIMATED)
+GIVEN, REST, DIFFERENCES, GUESS, ESTIMATED = "given", "rest", "differences", "guess", "estimated by the solve"
+LEVEL_SOURCES = (GIVEN, REST, DIFFERENCES, GUESS, ESTIMATED)
 
 
 def mag_noise_std(y_mag: np.ndarray) -> float:
     """One magnetometer noise std (input unit), the RMS over the three axes."""
     return float(np.sqrt(np.mean(white_noise_std(y_mag) ** 2)))
+
+
+def floor_level(x: np.ndarray) -> tuple[float, str]:
+    """(RMS over the axes of the differences' noise floor, DIFFERENCES when it is noise else GUESS)."""
+    std, is_noise = noise_floor_std(x)
+    return float(np.sqrt(np.mean(std**2))), DIFFERENCES if is_noise else GUESS
 
 
 def gyro_noise_density_rad_s_sqrt_hz(gyro_rad_s: np.ndarray, rate_hz: float) -> float:
@@ -104,11 +112,11 @@ def noise_levels(session: Session, options: Options, found: rests.Rests) -> Nois
         source = f"the {longest[1] - longest[0]:.1f} s rest (correlation included)"
         gyro_source = mag_source = REST
     else:
-        mag_sample = mag_eff = mag_noise_std(session.mag)
-        density = gyro_noise_density_rad_s_sqrt_hz(session.gyro_rad_s, rate)
-        gyro_sample = density * np.sqrt(rate)
-        source = "third differences (white noise assumed; a guess while the device moves)"
-        gyro_source = mag_source = GUESS
+        mag_sample, mag_source = floor_level(session.mag)
+        gyro_sample, gyro_source = floor_level(session.gyro_rad_s)
+        mag_eff, density = mag_sample, gyro_sample / np.sqrt(rate)
+        source = "differences (white noise assumed" + ("" if gyro_source == mag_source == DIFFERENCES else
+                                                      "; the motion shows in them: a guess") + ")"
     if options.mag_noise_std:
         mag_sample = mag_eff = options.mag_noise_std
         mag_source = GIVEN
