@@ -44,12 +44,12 @@ def noise_floor_std(x: np.ndarray) -> tuple[np.ndarray, bool]:
 
     For white noise every order gives the same level; a motion that leaks in shrinks by about (omega dt)^2
     per order while the noise's gain only grows, so the levels fall with the order until only the noise is
-    left. The first order whose next one no longer falls (by more than 1 - MOTION_FREE_RATIO, RMS over the
-    columns) gives the level, and it is noise; when they still fall at MAX_ORDER, the last level is an upper
+    left. The first order whose level no longer falls (by more than 1 - MOTION_FREE_RATIO from the previous
+    order's, RMS over the columns) gives the level, and it is noise; when they still fall at MAX_ORDER, the last level is an upper
     bound only (motion too fast for the sample rate: a guess)."""
     levels = [difference_noise_std(x, k) for k in range(3, MAX_ORDER + 1)]
     rms = [float(np.sqrt(np.mean(v**2))) for v in levels]
     for k in range(len(levels) - 1):
         if rms[k] > 0 and rms[k + 1] >= MOTION_FREE_RATIO * rms[k]:
-            return levels[k], True
+            return levels[k + 1], True
     return levels[-1], False

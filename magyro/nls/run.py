@@ -11,6 +11,7 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -24,7 +25,7 @@ from magyro.nls.method import NLS
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.solve import build_problem, problem_parameters, solve_passes
 from magyro.nls.disturbance import disturbance_covariance
-from magyro.nls.variance import variance_components
+from magyro.nls.variance import secant_factor, variance_components
 from magyro.nls.trajectory import attitude_trajectory, solved_attitudes
 from magyro.observability.gate import accuracy_gate, accuracy_shortfalls, accuracy_summary, needs_accuracy_check
 from magyro.options import Options
@@ -87,8 +88,12 @@ def level_estimator(problem: JointProblem, prep: Prepared, lin: Linearisation):
     if not (gyro or mag):
         return None
 
+    tried = {"gyro": [], "mag": []}
+
     def step(x, r, sigma_mag, density, tau0_s):
-        return variance_components(problem, prep, lin, x, r, sigma_mag, density, tau0_s, gyro, mag)
+        found = variance_components(problem, prep, lin, x, r, sigma_mag, density, tau0_s, gyro, mag)
+        return dataclasses.replace(found, gyro_factor=secant_factor(tried["gyro"], density, found.gyro_factor),
+                                   mag_factor=secant_factor(tried["mag"], sigma_mag, found.mag_factor))
     return step
 
 

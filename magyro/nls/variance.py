@@ -68,8 +68,9 @@ def block_tridiagonal_inverse_band(A: np.ndarray, B: np.ndarray) -> tuple[np.nda
     return G, U
 
 
-def trace_inverse_times(red: Reduced, H_triu: ca.DM, part_values: np.ndarray) -> float:
-    """tr(H^-1 P) for a symmetric P with H's pattern, given as the values of triu(P) in H_triu's nonzero order."""
+def inverse_on_pattern(red: Reduced, H_triu: ca.DM) -> np.ndarray:
+    """H^-1 at the nonzeros of triu(H), in their order, off-diagonal entries counted twice: so that
+    tr(H^-1 P) = sum(inverse_on_pattern * triu(P) values) for any symmetric P with H's pattern."""
     rows, cols = (np.asarray(v) for v in H_triu.sparsity().get_triplet())
     G, b = red.H_tp.shape[0], red.block
     Si = np.linalg.inv(red.information)
@@ -85,8 +86,7 @@ def trace_inverse_times(red: Reduced, H_triu: ca.DM, part_values: np.ndarray) ->
     same = r // b == c // b
     d_inv = np.where(same, diag[r // b, r % b, c % b], upper[np.minimum(r // b, len(upper) - 1), r % b, c % b])
     inv[pp] = d_inv + np.einsum("ia,ab,ib->i", W[r], Si, W[c])
-    weight = np.where(rows == cols, 1.0, 2.0)
-    return float(np.sum(weight * inv * part_values))
+    return np.where(rows == cols, 1.0, 2.0) * inv
 
 
 def group_part(problem: JointProblem, x, H: ca.DM, p_probe: np.ndarray) -> np.ndarray:
@@ -98,11 +98,16 @@ def group_part(problem: JointProblem, x, H: ca.DM, p_probe: np.ndarray) -> np.nd
 
 
 def component_factor(sum_squares: float, n: int, trace: float) -> tuple[float, float]:
-    """(factor on the std, redundancy) of one group; factor 1 when too few residuals are redundant."""
+    """(factor on the std, redundancy) of one group. With fewer than MIN_REDUNDANCY redundant residuals the level
+    is not measured (factor 1), unless the residuals are far larger than it allows (3 std of their chi^2 above
+    the mean): a level too small shows however few residuals are left."""
     redundancy = n - trace
-    if not (np.isfinite(redundancy) and redundancy >= MIN_REDUNDANCY and sum_squares > 0):
+    if not (np.isfinite(redundancy) and redundancy > 0 and sum_squares > 0):
         return 1.0, float(redundancy)
-    return float(np.sqrt(sum_squares / redundancy)), float(redundancy)
+    ratio = sum_squares / redundancy
+    if redundancy < MIN_REDUNDANCY and ratio < 1.0 + 3.0 * np.sqrt(2.0 / redundancy):
+        return 1.0, float(redundancy)
+    return float(np.sqrt(ratio)), float(redundancy)
 
 
 def variance_components(problem: JointProblem, prep: Prepared, lin: Linearisation, x: np.ndarray, r: np.ndarray,
@@ -114,7 +119,7 @@ def variance_components(problem: JointProblem, prep: Prepared, lin: Linearisatio
     x_dm = ca.DM(x)
     p = problem_parameters(problem, prep, lin, sigma_mag, tau0_s, density)
     H = problem.hessian_function(x_dm, ca.DM(p))
-    red = reduce_hessian(H, problem.n_theta, problem.B)
+    inverse = inverse_on_pattern(reduce_hessian(H, problem.n_theta, problem.B), H)
     gyro = gyro_residuals(r, grid.stride)[grid.gyro_linked]
     mag = magnetometer_residuals(r, grid.stride)[grid.sample_mask]
     gyro_factor = mag_factor = 1.0
@@ -122,11 +127,34 @@ def variance_components(problem: JointProblem, prep: Prepared, lin: Linearisatio
     if estimate_gyro:
         part = group_part(problem, x_dm, H, problem_parameters(problem, prep, lin, sigma_mag, tau0_s,
                                                                  density * PROBE_FACTOR))
-        gyro_factor, gyro_red = component_factor(float(np.sum(gyro**2)), gyro.size, trace_inverse_times(red, H, part))
+        gyro_factor, gyro_red = component_factor(float(np.sum(gyro**2)), gyro.size, float(inverse @ part))
     if estimate_mag:
         part = group_part(problem, x_dm, H, problem_parameters(problem, prep, lin, sigma_mag * PROBE_FACTOR, tau0_s,
                                                                  density))
         robust_sum = mag.size * np.median(np.sum(mag**2, axis=1)) / CHI2_3DOF_MEDIAN
-        mag_factor, mag_red = component_factor(float(robust_sum), mag.size, trace_inverse_times(red, H, part))
+        mag_factor, mag_red = component_factor(float(robust_sum), mag.size, float(inverse @ part))
         mag_factor *= float(np.sqrt(noise.integrated_autocorrelation_time(mag)))
     return VarianceComponents(gyro_factor, mag_factor, gyro_red, mag_red)
+
+
+MAX_STEP = np.log(10.0)    # an accelerated step moves a level by at most 10x
+
+
+def secant_factor(history: list, level: float, factor: float) -> float:
+    """The factor to apply to `level`, accelerated: the plain step (sigma <- sigma * factor) closes the gap slowly
+    when a level is far off (each pass moves a 30x guess by 5-20 %), so the zero of log(factor) against
+    log(level) is found by secant steps on the levels tried so far (`history`, appended to), never shorter than the
+    plain step nor longer than 10x."""
+    s, f = float(np.log(level)), float(np.log(factor))
+    history.append((s, f))
+    if len(history) < 2 or f == 0.0:
+        return factor
+    (s0, f0), (s1, f1) = history[-2], history[-1]
+    if s1 == s0 or f1 == f0:
+        return factor
+    slope = (f1 - f0) / (s1 - s0)
+    if slope >= 0:
+        return factor
+    step = -f1 / slope
+    step = np.sign(f1) * min(max(abs(step), abs(f1)), MAX_STEP)
+    return float(np.exp(step))
