@@ -16,8 +16,9 @@ level is a guess; the least squares then estimates both levels itself
 pass the numbers instead.
 
 Where each level came from is kept per sensor (`LEVEL_SOURCES`): "given",
-"rest", "differences" (the floor of the 3rd..8th differences' levels, where
-they stop falling: noise, not motion, `differences.noise_floor_std`), "guess"
+"rest", "differences" (the gyro: the floor of the 3rd..8th differences'
+levels, where they stop falling: noise, not motion, `differences.noise_floor_std`;
+the magnetometer: the third's level, when the fourth's confirms it), "guess"
 (still falling: the motion is too fast for the rate) here, "estimated by the solve" once the least squares has
 replaced a guess.
 """
@@ -29,7 +30,8 @@ import numpy as np
 
 from magyro.errors import InputError
 from magyro.front import rests
-from magyro.front.differences import MAD_TO_STD, THIRD_DIFFERENCE_GAIN, noise_floor_std, white_noise_std  # noqa: F401
+from magyro.front.differences import (MAD_TO_STD, MOTION_FREE_RATIO, THIRD_DIFFERENCE_GAIN,  # noqa: F401
+                                     difference_noise_std, noise_floor_std, white_noise_std)
 from magyro.options import Options
 from magyro.session import Session
 
@@ -43,9 +45,19 @@ def mag_noise_std(y_mag: np.ndarray) -> float:
 
 
 def floor_level(x: np.ndarray) -> tuple[float, str]:
-    """(RMS over the axes of the differences' noise floor, DIFFERENCES when it is noise else GUESS)."""
+    """(RMS over the axes of the differences' noise floor, DIFFERENCES when it is noise else GUESS): the gyro's."""
     std, is_noise = noise_floor_std(x)
     return float(np.sqrt(np.mean(std**2))), DIFFERENCES if is_noise else GUESS
+
+
+def third_difference_level(x: np.ndarray) -> tuple[float, str]:
+    """(RMS over the axes of the third differences' level, DIFFERENCES when the fourth's confirm it else GUESS):
+    the magnetometer's. Its noise is often filtered (BROAD's: lag-1 autocorrelation 0.78), which higher
+    orders see less of, so a falling level there may be the filter rather than motion: the third's level
+    stays, and only its source says whether it is trusted; the solve estimates a guessed one."""
+    third, fourth = difference_noise_std(x, 3), difference_noise_std(x, 4)
+    level = float(np.sqrt(np.mean(third**2)))
+    return level, DIFFERENCES if np.sqrt(np.mean(fourth**2)) >= MOTION_FREE_RATIO * level else GUESS
 
 
 def gyro_noise_density_rad_s_sqrt_hz(gyro_rad_s: np.ndarray, rate_hz: float) -> float:
@@ -112,7 +124,7 @@ def noise_levels(session: Session, options: Options, found: rests.Rests) -> Nois
         source = f"the {longest[1] - longest[0]:.1f} s rest (correlation included)"
         gyro_source = mag_source = REST
     else:
-        mag_sample, mag_source = floor_level(session.mag)
+        mag_sample, mag_source = third_difference_level(session.mag)
         gyro_sample, gyro_source = floor_level(session.gyro_rad_s)
         mag_eff, density = mag_sample, gyro_sample / np.sqrt(rate)
         source = "differences (white noise assumed" + ("" if gyro_source == mag_source == DIFFERENCES else
