@@ -15,9 +15,10 @@ from magyro.front import noise
 from magyro.front.differences import noise_floor_std, white_noise_std
 from magyro.front.prepare import prepare
 from magyro.nls.method import NLS
-from magyro.nls.run import calibrate_nls, level_estimator
+from magyro.nls.diagnostics import guessed_level_warnings, level_sources
+from magyro.nls.run import calibrate_nls, level_estimator, not_converged_message
 from magyro.nls.solve import build_problem, solve_passes
-from magyro.nls.variance import block_tridiagonal_inverse_band
+from magyro.nls.variance import MIN_REDUNDANCY, block_tridiagonal_inverse_band
 from magyro.options import Options
 from magyro.studies.scenario import load_problem
 from magyro.studies.simulate import simulate
@@ -85,13 +86,29 @@ def test_band_inverse_is_the_inverse():
 
 
 def test_the_solve_estimates_a_guessed_level(no_rest):
-    """A magnetometer level 3x too large, marked a guess: the variance components bring it back to the truth."""
+    """A magnetometer level 3x too large, marked a guess: the variance components bring it back to the truth.
+    The gyro, marked a guess too, has too few redundant residuals at 28 Hz to be measured: it stays a guess,
+    and the warning says so and names --gyro-noise."""
     session, truth, _ = no_rest
     options = Options()
     prep = prepare(session, options)
     prep = dataclasses.replace(prep, sigma_mag=3.0 * prep.sigma_mag,
-                               levels=dataclasses.replace(prep.levels, mag_source=noise.GUESS))
+                               levels=dataclasses.replace(prep.levels, mag_source=noise.GUESS,
+                                                          gyro_source=noise.GUESS))
     grid, lin, problem = build_problem(prep, options, NLS())
     sol = solve_passes(problem, prep, lin, NLS(), level_estimator(problem, prep, lin))
     assert sol.levels_settled and sol.variance.mag_redundancy > 1000
     assert sol.sigma_mag == pytest.approx(truth["noise"]["mag_std"], rel=0.1)
+    assert level_sources(prep, sol) == (noise.GUESS, noise.ESTIMATED)
+    assert sol.variance.gyro_redundancy < MIN_REDUNDANCY
+    (warning,) = guessed_level_warnings(prep, sol)
+    assert "gyro noise density is a guess" in warning and "--gyro-noise" in warning
+    assert f"only {sol.variance.gyro_redundancy:.0f} redundant residuals" in warning
+
+
+def test_a_failed_solve_never_says_nan():
+    class Stalled:
+        stats = {"return_status": "Maximum_Iterations_Exceeded", "iter_count": 300}
+    message = not_converged_message(Stalled(), float("nan"))
+    assert "nan" not in message.lower() and "singular" in message
+    assert "reduce chi^2 by 0.5" in not_converged_message(Stalled(), 0.5)
