@@ -8,11 +8,19 @@ tau = 1 + 2 sum_k rho_k (in samples), the effective white std is
 s * sqrt(tau): one sample in tau carries independent information.
 
 From rests (when the session has them) both s and tau come straight from
-the still data. Otherwise, a third difference of a smooth signal sampled fast is nearly zero, while for
-white noise of std s it has std s * sqrt(20). A robust (MAD) scale of the
-third differences therefore estimates the white-noise std per axis, even
-while the device moves. Good enough to weight the least squares; users who
-know their sensor pass the numbers instead.
+the still data. Otherwise the only level the data give before a solve is the
+third differences' (`magyro.front.differences`): right while the motion is
+slow against the sample rate, far too large at a phone's 25-40 Hz. Such a
+level is a guess; the least squares then estimates both levels itself
+(variance components, `magyro.nls.variance`). Users who know their sensor
+pass the numbers instead.
+
+Where each level came from is kept per sensor (`LEVEL_SOURCES`): "given",
+"rest", "differences" (the gyro: the floor of the 3rd..8th differences'
+levels, where they stop falling: noise, not motion, `differences.noise_floor_std`;
+the magnetometer: the third's level, when the fourth's confirms it), "guess"
+(still falling: the motion is too fast for the rate) here, "estimated by the solve" once the least squares has
+replaced a guess.
 """
 from __future__ import annotations
 
@@ -22,24 +30,34 @@ import numpy as np
 
 from magyro.errors import InputError
 from magyro.front import rests
+from magyro.front.differences import (MAD_TO_STD, MOTION_FREE_RATIO, THIRD_DIFFERENCE_GAIN,  # noqa: F401
+                                     difference_noise_std, noise_floor_std, white_noise_std)
 from magyro.options import Options
 from magyro.session import Session
 
-THIRD_DIFFERENCE_GAIN = np.sqrt(20.0)  # sqrt(1 + 9 + 9 + 1)
-MAD_TO_STD = 1.4826
-
-
-def white_noise_std(x: np.ndarray) -> np.ndarray:
-    """Per-column white-noise std of samples x (N, d) from robust third differences."""
-    d3 = np.diff(np.asarray(x, dtype=float), n=3, axis=0)
-    med = np.median(d3, axis=0)
-    mad = np.median(np.abs(d3 - med), axis=0)
-    return MAD_TO_STD * mad / THIRD_DIFFERENCE_GAIN
+GIVEN, REST, DIFFERENCES, GUESS, ESTIMATED = "given", "rest", "differences", "guess", "estimated by the solve"
+LEVEL_SOURCES = (GIVEN, REST, DIFFERENCES, GUESS, ESTIMATED)
 
 
 def mag_noise_std(y_mag: np.ndarray) -> float:
     """One magnetometer noise std (input unit), the RMS over the three axes."""
     return float(np.sqrt(np.mean(white_noise_std(y_mag) ** 2)))
+
+
+def floor_level(x: np.ndarray) -> tuple[float, str]:
+    """(RMS over the axes of the differences' noise floor, DIFFERENCES when it is noise else GUESS): the gyro's."""
+    std, is_noise = noise_floor_std(x)
+    return float(np.sqrt(np.mean(std**2))), DIFFERENCES if is_noise else GUESS
+
+
+def third_difference_level(x: np.ndarray) -> tuple[float, str]:
+    """(RMS over the axes of the third differences' level, DIFFERENCES when the fourth's confirm it else GUESS):
+    the magnetometer's. Its noise is often filtered (BROAD's: lag-1 autocorrelation 0.78), which higher
+    orders see less of, so a falling level there may be the filter rather than motion: the third's level
+    stays, and only its source says whether it is trusted; the solve estimates a guessed one."""
+    third, fourth = difference_noise_std(x, 3), difference_noise_std(x, 4)
+    level = float(np.sqrt(np.mean(third**2)))
+    return level, DIFFERENCES if np.sqrt(np.mean(fourth**2)) >= MOTION_FREE_RATIO * level else GUESS
 
 
 def gyro_noise_density_rad_s_sqrt_hz(gyro_rad_s: np.ndarray, rate_hz: float) -> float:
@@ -88,7 +106,9 @@ class NoiseLevels:
     gyro_sample_std_rad_s: float
     mag_std: float                 # effective: per-sample std * sqrt(autocorrelation time)
     gyro_density_rad_s_sqrt_hz: float
-    source: str
+    source: str                    # in words, for the table
+    gyro_source: str = GUESS       # one of LEVEL_SOURCES
+    mag_source: str = GUESS
 
 
 def noise_levels(session: Session, options: Options, found: rests.Rests) -> NoiseLevels:
@@ -102,16 +122,20 @@ def noise_levels(session: Session, options: Options, found: rests.Rests) -> Nois
         mag_eff = effective_std(still.mag_still)
         density = effective_std(still.gyro_still) / np.sqrt(rate)
         source = f"the {longest[1] - longest[0]:.1f} s rest (correlation included)"
+        gyro_source = mag_source = REST
     else:
-        mag_sample = mag_eff = mag_noise_std(session.mag)
-        density = gyro_noise_density_rad_s_sqrt_hz(session.gyro_rad_s, rate)
-        gyro_sample = density * np.sqrt(rate)
-        source = "third differences (white noise assumed)"
+        mag_sample, mag_source = third_difference_level(session.mag)
+        gyro_sample, gyro_source = floor_level(session.gyro_rad_s)
+        mag_eff, density = mag_sample, gyro_sample / np.sqrt(rate)
+        source = "differences (white noise assumed" + ("" if gyro_source == mag_source == DIFFERENCES else
+                                                      "; the motion shows in them: a guess") + ")"
     if options.mag_noise_std:
         mag_sample = mag_eff = options.mag_noise_std
+        mag_source = GIVEN
     if options.gyro_noise_density_rad_s_sqrt_hz:
         density = options.gyro_noise_density_rad_s_sqrt_hz
         gyro_sample = density * np.sqrt(rate)
+        gyro_source = GIVEN
     if options.mag_noise_std or options.gyro_noise_density_rad_s_sqrt_hz:
         source = "given" if options.mag_noise_std and options.gyro_noise_density_rad_s_sqrt_hz else source + ", partly given"
     if not (mag_eff > 0 and density > 0):
@@ -119,4 +143,5 @@ def noise_levels(session: Session, options: Options, found: rests.Rests) -> Nois
             "cannot estimate the sensor noise from the data (the readings do not vary); "
             "pass --mag-noise and --gyro-noise"
         )
-    return NoiseLevels(float(mag_sample), float(gyro_sample), float(mag_eff), float(density), source)
+    return NoiseLevels(float(mag_sample), float(gyro_sample), float(mag_eff), float(density), source, gyro_source,
+                       mag_source)

@@ -41,6 +41,7 @@ class Prepared:
     analysis: ObservabilityAnalysis
     rests: rests.Rests | None = None
     noise_source: str = ""
+    levels: NoiseLevels | None = None   # where each level came from (given, rest, guess)
 
 
 def attitude_span_deg(session: Session, bias_rad_s: np.ndarray | None = None) -> float:
@@ -177,4 +178,4 @@ def prepare(session: Session, options: Options) -> Prepared:
         raise ObservabilityError(
             f"the motion does not excite every gyro parameter: {analysis.summary()} (--force solves anyway)", analysis
         )
-    return Prepared(session, sigma_mag, density, fit, field, analysis, found, levels.source)
+    return Prepared(session, sigma_mag, density, fit, field, analysis, found, levels.source, levels)

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from magyro.front.differences import white_noise_std
 from magyro.session import Session
 
 WINDOW_S = 0.5
@@ -73,8 +74,6 @@ def end_rest_lengths(session: Session, gyro_white: np.ndarray, mag_white: np.nda
 
 def find_rests(session: Session) -> Rests:
     """The rests at the start and at the end of the session."""
-    from magyro.front.noise import white_noise_std
-
     gw, mw = white_noise_std(session.gyro_rad_s), white_noise_std(session.mag)
     t_first = max(session.t_gyro_s[0], session.t_mag_s[0])
     t_last = min(session.t_gyro_s[-1], session.t_mag_s[-1])

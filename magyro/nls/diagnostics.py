@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from magyro.front import ellipsoid, rests
+from magyro.front import ellipsoid, noise, rests
 from magyro.front.prepare import Prepared
 from magyro.nls.grid import Grid
 from magyro.nls.hard_iron import hard_iron_at_samples
@@ -17,6 +17,7 @@ from magyro.nls.reduction import Reduced
 from magyro.nls.method import NLS
 from magyro.nls.interval import N_GLOBAL
 from magyro.nls.problem import JointProblem
+from magyro.nls.variance import MIN_REDUNDANCY
 from magyro.nls.solve import Solution, gyro_residuals, magnetometer_residuals, residual_matrix
 from magyro.observability.gate import ObservabilityAnalysis
 from magyro.result.calibration import Calibration
@@ -122,6 +123,51 @@ def warnings_for(fit: LeastSquaresFit, analysis: ObservabilityAnalysis, C_b_m: n
     return out
 
 
+def level_sources(prep: Prepared, sol: Solution) -> tuple[str, str]:
+    """(gyro, magnetometer): where each level that weighted the fit came from. A guess the solve re-weighted
+    until it settled, with enough redundant residuals to measure it, is "estimated by the solve"."""
+    levels = prep.levels
+    if levels is None:
+        return "", ""
+    step = sol.variance
+
+    def source(given: str, factor_redundancy: float) -> str:
+        if given != noise.GUESS or step is None or not sol.levels_settled:
+            return given
+        return noise.ESTIMATED if factor_redundancy >= MIN_REDUNDANCY else noise.GUESS
+    return (source(levels.gyro_source, step.gyro_redundancy if step else 0.0),
+            source(levels.mag_source, step.mag_redundancy if step else 0.0))
+
+
+def noise_report(prep: Prepared, sol: Solution, disturbance: FieldDisturbance) -> NoiseReport:
+    """The levels that weighted the fit, those before the solve, and where each came from."""
+    gyro_source, mag_source = level_sources(prep, sol)
+    density = prep.gyro_density if sol.gyro_density is None else sol.gyro_density
+    step = sol.variance
+    redundancy = None if step is None else {k: float(v) for k, v in (("gyro", step.gyro_redundancy),
+                                                                      ("mag", step.mag_redundancy)) if np.isfinite(v)}
+    return NoiseReport(float(density), float(sol.sigma_mag), float(prep.sigma_mag), prep.noise_source, disturbance,
+                       float(prep.gyro_density), gyro_source, mag_source, redundancy or None)
+
+
+def guessed_level_warnings(prep: Prepared, sol: Solution) -> list[str]:
+    """A level that is still a guess after the solve (no rest, not given, not measurable by the solve)."""
+    out = []
+    step = sol.variance
+    for name, src, option, redundancy in zip(("gyro noise density", "magnetometer noise"), level_sources(prep, sol),
+                                              ("--gyro-noise", "--mag-noise"),
+                                              (None if step is None else step.gyro_redundancy,
+                                               None if step is None else step.mag_redundancy)):
+        if src != noise.GUESS:
+            continue
+        why = ("its re-weighting had not settled" if not sol.levels_settled else
+               f"the fit leaves only {redundancy:.0f} redundant residuals to measure it" if redundancy is not None
+               and np.isfinite(redundancy) else "it could not be measured")
+        out.append(f"the {name} is a guess: the recording has no rest at either end and {why}; the std rests on it. "
+                   f"Start and end the recording with 2 s of rest, or pass {option}")
+    return out
+
+
 def walk_details(problem: JointProblem, method: NLS, h_samples: np.ndarray) -> dict:
     """The moving hard iron's density and how far it walked (peak to peak per axis, magnetometer unit)."""
     if not problem.walk:
@@ -158,11 +204,10 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
                             {"gauss_newton_decrement": stats["gauss_newton_decrement"], "passes": sol.passes,
                              "nodes": int(grid.nodes), "stride": int(grid.stride), "loss": method.loss,
                              **walk_details(problem, method, h_samples)}),
-        noise=NoiseReport(float(prep.gyro_density), float(sol.sigma_mag), float(prep.sigma_mag), prep.noise_source,
-                          disturbance),
+        noise=noise_report(prep, sol, disturbance),
         fit=fit,
         time_offset_s=tau,
         time_offset_estimated=problem.n_theta > N_GLOBAL,
         rests=rest_check(prep.rests, Kg, C.T @ eps),
-        warnings=warnings_for(fit, a, C, prep.fit),
+        warnings=warnings_for(fit, a, C, prep.fit) + guessed_level_warnings(prep, sol),
     )

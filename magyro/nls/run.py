@@ -11,11 +11,13 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
 
 from magyro.errors import ObservabilityError, SolverError
+from magyro.front import noise
 from magyro.front.prepare import Prepared, prepare
 from magyro.nls.diagnostics import assemble
 from magyro.nls.information import information_std
@@ -24,6 +26,7 @@ from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.reduction import gauss_newton_decrement, reduce_hessian
 from magyro.nls.solve import build_problem, problem_parameters, solve_passes
 from magyro.nls.disturbance import disturbance_covariance
+from magyro.nls.variance import secant_factor, variance_components
 from magyro.nls.trajectory import attitude_trajectory, solved_attitudes
 from magyro.observability.gate import accuracy_gate, accuracy_shortfalls, accuracy_summary, needs_accuracy_check
 from magyro.options import Options
@@ -44,7 +47,7 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     grid, lin, problem = build_problem(prep, options, method)
     gate_warnings = predicted_accuracy_gate(problem, prep, lin, options)
     step(f"solving the least squares ({problem.n_x} unknowns, IPOPT)")
-    sol = solve_passes(problem, prep, lin, method)
+    sol = solve_passes(problem, prep, lin, method, level_estimator(problem, prep, lin))
     step("the uncertainty: information and the room's field")
     reduced = reduce_hessian(problem.hessian_function(sol.x, sol.p_casadi), problem.n_theta, problem.B)
     decrement = gauss_newton_decrement(reduced, np.array(problem.gradient_function(sol.x, sol.p_casadi)).ravel())
@@ -57,10 +60,7 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
         if not options.force and not gate_checked(prep):
             # the excitation looked strong enough to skip the accuracy check; a failed solve says look again
             predicted_accuracy_gate(problem, prep, lin, options, always=True)
-        raise SolverError(
-            f"the solver did not converge: {sol.stats['return_status']} after {sol.stats['iter_count']} iterations "
-            f"(a further Gauss-Newton step would still reduce chi^2 by {decrement:.3g})"
-        )
+        raise SolverError(not_converged_message(sol, decrement))
     sol.stats["gauss_newton_decrement"] = decrement
     cov_theta, disturbance = disturbance_covariance(problem, sol.x, sol.p, reduced, solved_attitudes(problem, lin, sol.x),
                                                     prep.session)
@@ -69,6 +69,33 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     if method.trajectory:
         cal.trajectory = attitude_trajectory(problem, grid, lin, sol.x, reduced, prep.session, cal.R, cal.h, cov_theta)
     return cal
+
+
+def not_converged_message(sol, decrement: float) -> str:
+    """Why the solve is refused (exit 1), with the evidence: never a printed nan."""
+    still = (f"a further Gauss-Newton step would still reduce chi^2 by {decrement:.3g}" if np.isfinite(decrement) else
+             "the Gauss-Newton step cannot be computed there: the information is singular or not finite")
+    return (f"the solver did not converge: {sol.stats['return_status']} after {sol.stats['iter_count']} iterations "
+            f"({still}); the data do not fit the model at the point it reached")
+
+
+def level_estimator(problem: JointProblem, prep: Prepared, lin: Linearisation):
+    """The variance-component step of `solve_passes` when a noise level is a guess (no rest, not given), else None:
+    the least squares then estimates the guessed levels (`magyro.nls.variance`)."""
+    levels = prep.levels
+    if levels is None:
+        return None
+    gyro, mag = levels.gyro_source == noise.GUESS, levels.mag_source == noise.GUESS
+    if not (gyro or mag):
+        return None
+
+    tried = {"gyro": [], "mag": []}
+
+    def step(x, r, sigma_mag, density, tau0_s):
+        found = variance_components(problem, prep, lin, x, r, sigma_mag, density, tau0_s, gyro, mag)
+        return dataclasses.replace(found, gyro_factor=secant_factor(tried["gyro"], density, found.gyro_factor),
+                                   mag_factor=secant_factor(tried["mag"], sigma_mag, found.mag_factor))
+    return step
 
 
 def solved_accuracy_gate(cal: Calibration, options: Options) -> list[str]:

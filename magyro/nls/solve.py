@@ -156,10 +156,13 @@ def build_problem(prep: Prepared, options: Options, method: NLS,
     return grid, lin, problem
 
 
-def problem_parameters(problem: JointProblem, prep: Prepared, lin: Linearisation, sigma_mag: float, tau0_s: float) -> np.ndarray:
-    """The problem's parameter vector: linearisation point, noise weights and the session's data."""
+def problem_parameters(problem: JointProblem, prep: Prepared, lin: Linearisation, sigma_mag: float, tau0_s: float,
+                       gyro_density: float | None = None) -> np.ndarray:
+    """The problem's parameter vector: linearisation point, noise weights (the gyro's `prep.gyro_density` unless
+    given) and the session's data."""
     s = prep.session
-    return problem.parameters(lin, s.mag, sigma_mag, prep.gyro_density, s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, tau0_s)
+    density = prep.gyro_density if gyro_density is None else gyro_density
+    return problem.parameters(lin, s.mag, sigma_mag, density, s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, tau0_s)
 
 
 def magnetometer_noise_factor(problem: JointProblem, residuals: np.ndarray) -> float:
@@ -204,16 +207,31 @@ class Solution:
     seconds: float
     p_casadi: ca.DM                        # p as a DM, for the problem's Functions: converted once (0.9 s at 360k samples)
     residuals: np.ndarray | None = None    # residual_matrix at (x, p), when the last pass computed it
+    gyro_density: float | None = None      # the gyro level p was weighted with (prep's unless estimated)
+    variance: object = None                # the last `variance.VarianceComponents` step, when the levels were estimated
+    levels_settled: bool = True            # False: the estimated levels still moved on the last pass
 
 
-def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, method: NLS) -> Solution:
-    """IPOPT, then at most two warm re-solves: new time-offset look-up, re-weighted magnetometer noise."""
+VARIANCE_TOLERANCE = 0.05   # estimated levels are settled when the last step moved each by less than this
+MAX_VARIANCE_PASSES = 12    # passes when the levels are estimated (each a warm start of a few iterations)
+
+
+def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, method: NLS,
+                 variance_step=None) -> Solution:
+    """IPOPT, then warm re-solves: new time-offset look-up, re-weighted noise levels.
+
+    With rests (or given levels) at most two re-solves, the magnetometer re-weighted by its residuals'
+    robust scale. With a `variance_step` (noise levels that were guesses, `magyro.nls.variance`) the
+    levels are estimated: re-solved until a step moves neither by more than VARIANCE_TOLERANCE.
+    `variance_step(x, r, sigma_mag, density, tau0_s)` returns the step's factors on the two levels."""
     solver = problem.solver({"ipopt.max_iter": method.max_iter})
-    sigma_mag, tau0 = prep.sigma_mag, lin.time_offset_s
+    sigma_mag, density, tau0 = prep.sigma_mag, prep.gyro_density, lin.time_offset_s
+    estimating = variance_step is not None
+    max_passes = MAX_VARIANCE_PASSES if estimating else MAX_PASSES
     x = np.zeros(problem.n_x)
-    seconds, iterations = 0.0, 0
-    for n_pass in range(1, MAX_PASSES + 1):
-        p = problem_parameters(problem, prep, lin, sigma_mag, tau0)
+    seconds, iterations, step = 0.0, 0, None
+    for n_pass in range(1, max_passes + 1):
+        p = problem_parameters(problem, prep, lin, sigma_mag, tau0, density)
         p_dm = ca.DM(p)   # one numpy -> DM conversion for the solver and the residuals (8.5M numbers at 360k samples)
         t0 = time.perf_counter()
         x = np.array(solver(x0=x, p=p_dm)["x"]).ravel()
@@ -222,15 +240,21 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
         iterations += int(stats["iter_count"])
         stats["iter_count"] = iterations
         tau = float(problem.physical_function(x[: problem.n_theta], p[: problem.n_glob_p])[5].full().item())
-        r = residual_matrix(problem, x, p_dm) if method.reweight_noise else None   # kept for the fit statistics
-        factor = 1.0 if r is None else magnetometer_noise_factor(problem, r)
+        r = residual_matrix(problem, x, p_dm) if (method.reweight_noise or estimating) else None
+        if estimating:
+            step = variance_step(x, r, sigma_mag, density, tau0)
+            gyro_factor, mag_factor = step.gyro_factor, step.mag_factor
+            reweight = max(abs(gyro_factor - 1.0), abs(mag_factor - 1.0)) > VARIANCE_TOLERANCE
+        else:
+            gyro_factor, mag_factor = 1.0, (1.0 if r is None else magnetometer_noise_factor(problem, r))
+            reweight = abs(mag_factor - 1.0) > NOISE_RESCALE_TOLERANCE
         moved = abs(tau - tau0) * max(abs(tau), abs(tau0)) > TIME_OFFSET_RELOOK_S2
-        reweight = abs(factor - 1.0) > NOISE_RESCALE_TOLERANCE
-        if n_pass == MAX_PASSES or not (moved or reweight):
-            return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, p_dm, r)
+        if n_pass == max_passes or not (moved or reweight):
+            return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, p_dm, r, density, step, not reweight)
         if moved and problem.n_theta > N_GLOBAL:
             x[N_GLOBAL] += (tau0 - tau) / TIME_OFFSET_SCALE_S  # same tau, now about the new tau0
             tau0 = tau
         if reweight:
-            sigma_mag *= factor
+            sigma_mag *= mag_factor
+            density *= gyro_factor
     raise AssertionError("unreachable")

@@ -159,6 +159,8 @@ class Calibration:
         if self.time_offset_estimated:
             lines.append(f"magnetometer lag behind the gyro (ms, negative: it leads)  {1e3 * self.time_offset_s:+.2f} +/- "
                          f"{1e3 * s.time_offset_s:.2f}")
+        if self.noise is not None and self.noise.gyro_source:
+            lines.append(self.noise.summary(self.mag_unit))
         disturbance = None if self.noise is None else self.noise.field_disturbance
         if disturbance is not None and self.std_white is not None:
             factor = float(np.median(s.bias_deg_s / np.maximum(self.std_white.bias_deg_s, 1e-300)))

@@ -142,23 +142,44 @@ class SolverReport:
 
 @dataclass(frozen=True)
 class NoiseReport:
-    """The noise levels that weighted the fit (JSON `noise`); `mag_std` in the magnetometer's unit."""
+    """The noise levels that weighted the fit (JSON `noise`); `mag_std` in the magnetometer's unit.
+
+    `gyro_source` and `mag_source` say where each level came from: "given", "rest", "estimated by the solve"
+    (variance components, when the session has no rest) or "guess" (third differences of a moving signal,
+    which the solve could not replace: a warning)."""
 
     gyro_density_rad_s_sqrt_hz: float
     mag_std: float
     mag_std_estimated: float | None = None   # before the least squares' re-weighting
     source: str = ""
     field_disturbance: "FieldDisturbance | None" = None   # the least squares: counted in its std
+    gyro_density_estimated: float | None = None   # before the least squares' re-weighting
+    gyro_source: str = ""
+    mag_source: str = ""
+    redundancy: dict | None = None   # {"gyro": r, "mag": r}: residuals left to measure each estimated level
 
     def to_dict(self) -> dict:
         out = {"gyro_density_rad_s_sqrt_hz": self.gyro_density_rad_s_sqrt_hz, "mag_std": self.mag_std}
         if self.mag_std_estimated is not None:
             out["mag_std_estimated"] = self.mag_std_estimated
+        if self.gyro_density_estimated is not None:
+            out["gyro_density_estimated"] = self.gyro_density_estimated
         if self.source:
             out["source"] = self.source
+        if self.gyro_source:
+            out["gyro_source"] = self.gyro_source
+        if self.mag_source:
+            out["mag_source"] = self.mag_source
+        if self.redundancy:
+            out["redundancy"] = dict(self.redundancy)
         if self.field_disturbance is not None:
             out["field_disturbance"] = self.field_disturbance.to_dict()
         return out
+
+    def summary(self, mag_unit: str) -> str:
+        """The table's line: each level and where it came from."""
+        return (f"noise: gyro {np.rad2deg(self.gyro_density_rad_s_sqrt_hz):.3g} deg/s/sqrt(Hz) ({self.gyro_source}), "
+                f"magnetometer {self.mag_std:.3g} {mag_unit} ({self.mag_source})")
 
     @classmethod
     def from_dict(cls, data: dict) -> "NoiseReport":
@@ -166,7 +187,9 @@ class NoiseReport:
         disturbance = data.get("field_disturbance")
         return cls(read_number(data, "gyro_density_rad_s_sqrt_hz", where), read_number(data, "mag_std", where),
                    data.get("mag_std_estimated"), str(data.get("source", "")),
-                   None if disturbance is None else FieldDisturbance.from_dict(disturbance))
+                   None if disturbance is None else FieldDisturbance.from_dict(disturbance),
+                   data.get("gyro_density_estimated"), str(data.get("gyro_source", "")),
+                   str(data.get("mag_source", "")), data.get("redundancy"))
 
 
 @dataclass(frozen=True)

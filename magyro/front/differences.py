@@ -1,0 +1,55 @@
+"""White-noise stds from robust third differences: the one noise measure that needs no rest.
+
+A third difference of a smooth signal sampled fast is nearly zero, while for
+white noise of std s it has std s * sqrt(20). A robust (MAD) scale of the
+third differences therefore estimates the white-noise std per axis while the
+device moves, as long as the motion is slow against the sample rate. At a
+phone's 25-40 Hz a hand's motion is not slow: the level is then far too large,
+a guess that the least squares replaces by its own estimate (`magyro.nls.variance`).
+Its own module so that the rests (which need it to judge stillness) and the
+noise levels (which need the rests) import it without importing each other.
+"""
+from __future__ import annotations
+
+from math import comb
+
+import numpy as np
+
+THIRD_DIFFERENCE_GAIN = np.sqrt(20.0)  # sqrt(1 + 9 + 9 + 1)
+MAD_TO_STD = 1.4826
+
+
+MOTION_FREE_RATIO = 0.9   # the next order's level at least this share of the previous: the noise floor
+
+
+def difference_noise_std(x: np.ndarray, order: int) -> np.ndarray:
+    """Per-column white-noise std of samples x (N, d) from robust differences of the given order
+    (white noise of std s gives a k-th difference of std s * sqrt(binomial(2k, k)))."""
+    dk = np.diff(np.asarray(x, dtype=float), n=order, axis=0)
+    med = np.median(dk, axis=0)
+    mad = np.median(np.abs(dk - med), axis=0)
+    return MAD_TO_STD * mad / np.sqrt(comb(2 * order, order))
+
+
+def white_noise_std(x: np.ndarray) -> np.ndarray:
+    """Per-column white-noise std of samples x (N, d) from robust third differences."""
+    return difference_noise_std(x, 3)
+
+
+MAX_ORDER = 8
+
+
+def noise_floor_std(x: np.ndarray) -> tuple[np.ndarray, bool]:
+    """(per-column white-noise std, whether it is noise): the levels of the 3rd, 4th, ... differences.
+
+    For white noise every order gives the same level; a motion that leaks in shrinks by about (omega dt)^2
+    per order while the noise's gain only grows, so the levels fall with the order until only the noise is
+    left. The first order whose level no longer falls (by more than 1 - MOTION_FREE_RATIO from the previous
+    order's, RMS over the columns) gives the level, and it is noise; when they still fall at MAX_ORDER, the last level is an upper
+    bound only (motion too fast for the sample rate: a guess)."""
+    levels = [difference_noise_std(x, k) for k in range(3, MAX_ORDER + 1)]
+    rms = [float(np.sqrt(np.mean(v**2))) for v in levels]
+    for k in range(len(levels) - 1):
+        if rms[k] > 0 and rms[k + 1] >= MOTION_FREE_RATIO * rms[k]:
+            return levels[k + 1], True
+    return levels[-1], False
