@@ -1,0 +1,64 @@
+"""Text that leaves magyro is safe wherever it lands (issue 25): a terminal, a C comment, YAML, TOML, a params file.
+
+A name or unit read from a file (session metadata, a calibration, a problem file) may hold terminal escapes
+(ESC, C1 controls), NUL, DEL, line breaks or Unicode bidi overrides (the "Trojan Source" pattern). Every such
+character is written as a visible escape (`\\x1b`, `\\u202e`) so it cannot act: `escaped(text)` for one line of
+a terminal or a comment, `c_comment(text)` also keeps a C block comment closed, `ascii_escaped(text)` keeps
+only printable ASCII. `unsafe_characters(text)` lists what would be escaped, for refusing a name outright.
+"""
+from __future__ import annotations
+
+import unicodedata
+
+# bidi controls (embeddings, overrides, isolates, marks): Unicode's own list of what reorders text
+BIDI = frozenset("\u061c\u200e\u200f\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
+
+
+def is_unsafe(ch: str) -> bool:
+    """True for a character that acts instead of showing: a control (C0, DEL, C1), a format character (bidi
+    and other invisible ones), a line or paragraph separator, a surrogate or a private-use character."""
+    return ch in BIDI or unicodedata.category(ch) in ("Cc", "Cf", "Cs", "Co", "Cn", "Zl", "Zp")
+
+
+def _escape(ch: str) -> str:
+    code = ord(ch)
+    return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}"
+
+
+def unsafe_characters(text: str) -> list[str]:
+    """The characters of `text` that `escaped` would escape, each as its escape (empty: the text is safe)."""
+    return list(dict.fromkeys(_escape(ch) for ch in str(text) if is_unsafe(ch)))
+
+
+def escaped(text) -> str:
+    """`text` on one line with every control, bidi or invisible character (tab and line breaks included)
+    written as a visible escape: safe on a terminal, in a comment, in a log line."""
+    return "".join(_escape(ch) if is_unsafe(ch) else ch for ch in str(text))
+
+
+def ascii_escaped(text) -> str:
+    """`escaped`, and every non-ASCII character as `\\uXXXX` too: plain printable ASCII."""
+    return "".join(ch if " " <= ch <= "~" else _escape(ch) for ch in str(text))
+
+
+def c_comment(text) -> str:
+    """Text safe inside a C block comment on one line: printable ASCII only (no bidi for gcc's -Wbidi-chars),
+    and neither `*/` (which would end it) nor `/*` (which -Wcomment warns about) can form."""
+    out = ascii_escaped(text)
+    while "*/" in out or "/*" in out:
+        out = out.replace("*/", "* /").replace("/*", "/ *")
+    return out
+
+
+def toml_string(text) -> str:
+    """A TOML basic string (quoted) holding `text` exactly: controls, DEL, bidi and non-ASCII escaped."""
+    out = []
+    for ch in str(text):
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif " " <= ch <= "~":
+            out.append(ch)
+        else:
+            code = ord(ch)
+            out.append(f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}")
+    return '"' + "".join(out) + '"'
