@@ -62,3 +62,38 @@ def toml_string(text) -> str:
             code = ord(ch)
             out.append(f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}")
     return '"' + "".join(out) + '"'
+
+
+MAX_NAME_CHARS = 100
+
+
+def name_problem(name: str) -> str | None:
+    """Why `name` cannot be one part of a file name (a problem name, a device id, a plan name), or None when it
+    can: it must be 1 to 100 printable characters without a path separator, not '.' or '..', nor start with '.'
+    (hidden, and the pattern of magyro's temporary files) or '-' (read as an option)."""
+    name = str(name)
+    if not name.strip():
+        return "it is empty"
+    if len(name) > MAX_NAME_CHARS:
+        return f"it is longer than {MAX_NAME_CHARS} characters"
+    bad = unsafe_characters(name)
+    if bad:
+        return f"it holds control or bidi characters ({', '.join(bad)})"
+    if "/" in name or "\\" in name:
+        return "it holds a path separator (/ or \\)"
+    if name.startswith("."):
+        return "it starts with '.'"
+    if name.startswith("-"):
+        return "it starts with '-'"
+    return None
+
+
+def file_name(name: str, what: str) -> str:
+    """`name` when it can be one part of a file name (see `name_problem`); InputError naming `what` otherwise."""
+    from magyro.errors import InputError
+
+    why = name_problem(name)
+    if why is not None:
+        raise InputError(f"{what} '{escaped(str(name)[:MAX_NAME_CHARS])}' cannot name a file ({why}); use letters, "
+                         "digits, '-' and '_'")
+    return name

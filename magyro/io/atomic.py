@@ -54,6 +54,20 @@ def check_outputs(inputs: Iterable, outputs: Iterable) -> None:
         checked.update(dict.fromkeys(keys, out))
 
 
+def confined(folder, name: str) -> Path:
+    """folder/name, checked to stay inside `folder` once resolved (no '..', no absolute name, no symlinked way
+    out); InputError naming the name otherwise. Every name read from input that becomes a path goes through here."""
+    from magyro.text import escaped
+
+    folder, name = Path(folder), str(name)
+    path = folder / name
+    if ("\0" in name or name in ("", ".", "..") or Path(name).is_absolute() or path.name != name
+            or _resolved(path.parent) != _resolved(folder)):
+        raise InputError(f"the name '{escaped(name[:100])}' would write outside {folder} (it holds a path or is "
+                         "not a file name); nothing written")
+    return path
+
+
 def file_identities(p: Path) -> tuple:
     """What names one file, for lookups: its resolved path, and its device and inode when it exists (a symlink
     or a hard link is the file it points to). Two paths name the same file exactly when they share one."""
