@@ -13,10 +13,9 @@ import re
 from pathlib import Path
 
 from magyro.errors import InputError, one_line
+from magyro.io.bounds import MAX_DEPTH, MAX_INT_DIGITS, tree_problem
 
 MAX_JSON_BYTES = 16 * 2 ** 20   # a calibration is a few kB; a report with series a few MB
-MAX_DEPTH = 64                  # magyro writes at most 5 levels
-MAX_INT_DIGITS = 40             # magyro writes counts (iterations, rank, residuals) of a few digits
 
 # the first bytes of files that are not JSON, to name what was given instead
 MAGIC = ((b"PAR1", "a session (Parquet, magyro's session file)"),
@@ -104,21 +103,7 @@ def parse_json_object(text: str, where: str = "", what: str = "calibration") -> 
         raise InputError(f"{where}not a {what}: {one_line(exc)}") from None
     if not isinstance(data, dict):
         raise InputError(f"{where}a {what} is a JSON object, not a {type(data).__name__}")
-    deep = deepest_path(data)
-    if deep is not None:
-        raise InputError(f"{where}not a {what}: nested deeper than {MAX_DEPTH} levels at {deep}")
+    problem = tree_problem(data, MAX_DEPTH, MAX_INT_DIGITS)
+    if problem is not None:
+        raise InputError(f"{where}not a {what}: {problem}")
     return data
-
-
-def deepest_path(data, limit: int = MAX_DEPTH) -> str | None:
-    """The key path of the first value nested deeper than `limit`, or None (iterative: no recursion)."""
-    stack = [(data, "", 0)]
-    while stack:
-        value, path, depth = stack.pop()
-        if depth > limit:
-            return path or "the top"
-        if isinstance(value, dict):
-            stack.extend((v, f"{path}.{k}" if path else str(k), depth + 1) for k, v in value.items())
-        elif isinstance(value, list):
-            stack.extend((v, f"{path}[{i}]", depth + 1) for i, v in enumerate(value))
-    return None
