@@ -138,6 +138,7 @@ def write_atomically(path: Path, write: Callable[[str], None]) -> None:
     (disk full, permission) is raised again naming `path`, not the temp file.
     """
     path = Path(path)
+    remove_stale_temps(path)
     try:
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     except OSError as exc:
@@ -154,6 +155,39 @@ def write_atomically(path: Path, write: Callable[[str], None]) -> None:
         if isinstance(exc, OSError):
             raise _naming_target(exc, path, tmp) from None
         raise
+
+
+STALE_TEMP_S = 15 * 60   # a temp file of ours untouched this long belongs to a run that was killed
+_swept: set = set()      # folders already swept by this process (a batch writes thousands of files into one)
+
+
+def remove_stale_temps(path: Path, older_than_s: float = STALE_TEMP_S) -> int:
+    """Remove the temp files killed runs left in `path`'s folder (`.NAME.XXXXXXXX.tmp` / `.check`, magyro's own
+    pattern, untouched for `older_than_s`; a write in progress keeps its file fresh), once per folder and process.
+    The number removed."""
+    import re
+    import time
+
+    pattern = re.compile(r"^\..+\.[A-Za-z0-9_]{8}\.(tmp|check)$")
+    removed = 0
+    folder = os.path.abspath(path.parent)
+    if folder in _swept:
+        return 0
+    _swept.add(folder)
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return 0
+    now = time.time()
+    for entry in entries:
+        try:
+            if pattern.match(entry.name) and entry.is_file(follow_symlinks=False) \
+                    and now - entry.stat(follow_symlinks=False).st_mtime > older_than_s:
+                os.unlink(entry.path)
+                removed += 1
+        except OSError:
+            pass
+    return removed
 
 
 def _naming_target(exc: OSError, path: Path, tmp: str | None) -> OSError:
