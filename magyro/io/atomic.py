@@ -168,7 +168,7 @@ def remove_stale_temps(path: Path, older_than_s: float = STALE_TEMP_S) -> int:
     import re
     import time
 
-    pattern = re.compile(r"^\..+\.[A-Za-z0-9_]{8}\.(tmp|check)$")
+    pattern = re.compile(r"^\..+\.[a-z0-9_]{8}\.(tmp|check)$")   # tempfile.mkstemp's names
     removed = 0
     folder = os.path.abspath(path.parent)
     if folder in _swept:
