@@ -41,7 +41,20 @@ def load_session(path, gyro_unit: str | None = None, mag_unit: str | None = None
     """
     path = Path(path)
     table, metadata = _read_table(path)
+    check_unit_label(path, mag_unit if mag_unit is not None else metadata.get("mag_unit", ""))
     return session_from_table(table, metadata, str(path), gyro_unit, mag_unit)
+
+
+def check_unit_label(path, unit) -> None:
+    """InputError when the magnetometer's unit label (printed in tables, written into exports) holds control or
+    bidi characters or is too long to be a unit: it would act on a terminal or in a C comment."""
+    from magyro.text import escaped, unsafe_characters
+
+    unit = str(unit)
+    bad = unsafe_characters(unit)
+    if bad or len(unit) > 40:
+        why = f"it holds control or bidi characters ({', '.join(bad)})" if bad else "longer than 40 characters"
+        raise InputError(f"{path}: the magnetometer unit '{escaped(unit[:40])}' is not a unit: {why}")
 
 
 def _read_table(path: Path) -> tuple:
