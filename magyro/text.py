@@ -30,10 +30,11 @@ def unsafe_characters(text: str) -> list[str]:
     return list(dict.fromkeys(_escape(ch) for ch in str(text) if is_unsafe(ch)))
 
 
-def escaped(text) -> str:
-    """`text` on one line with every control, bidi or invisible character (tab and line breaks included)
-    written as a visible escape: safe on a terminal, in a comment, in a log line."""
-    return "".join(_escape(ch) if is_unsafe(ch) else ch for ch in str(text))
+def escaped(text, keep_lines: bool = False) -> str:
+    """`text` with every control, bidi or invisible character written as a visible escape: safe on a terminal,
+    in a comment, in a log line. Line breaks and tabs are escaped too (one line), unless `keep_lines`."""
+    kept = "\n\t" if keep_lines else ""
+    return "".join(_escape(ch) if is_unsafe(ch) and ch not in kept else ch for ch in str(text))
 
 
 def ascii_escaped(text) -> str:
