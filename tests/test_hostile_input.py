@@ -157,8 +157,15 @@ def test_a_calibration_cut_short_is_named_so_by_every_command(folder, cut, comma
     refused(args, r"cut\.json: a calibration cut short", folder)
 
 
-def test_a_session_given_as_the_calibration_is_named_for_what_it_is(folder):
+def test_a_file_given_in_the_wrong_place_is_named_for_what_it_is(folder):
     refused(["apply", "s.parquet", "good.json", "-o", "o.parquet"], r"s\.parquet: this is a session \(Parquet", folder)
+    refused(["validate", "good.json", "s.parquet"], r"good\.json: this is a magyro JSON file \(magyro\.calibration\), "
+            "not a session", folder)
+
+
+def test_report_refuses_a_time_offset_that_is_not_a_number(folder):
+    write_json(folder / "nan.json", mutated(_set("time_offset_s", float("nan"))))
+    refused(["report", "s.parquet", "nan.json", "-o", "r.html"], r"time_offset_s must be a finite number", folder)
 
 
 def test_export_reads_a_path_that_looks_like_json_as_a_path(folder):

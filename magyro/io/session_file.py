@@ -133,9 +133,17 @@ def _user_metadata(raw: dict | None) -> dict:
 
 def _read_csv(path: Path):
     with open(path, "rb") as f:
-        if b"\x00" in f.read(8192):
-            raise InputError(f"{path}: binary data, not a CSV text file; "
-                             f"pass a CSV or a .parquet session file")
+        head = f.read(8192)
+    if b"\x00" in head:
+        raise InputError(f"{path}: binary data, not a CSV text file; "
+                         f"pass a CSV or a .parquet session file")
+    if head.lstrip().startswith(b"{"):   # a JSON file given where a session goes: say what it is
+        import re
+
+        found = re.search(rb'"schema"\s*:\s*"(magyro\.[a-z-]+)/', head)
+        what = f"a magyro JSON file ({found.group(1).decode()})" if found else "a JSON file"
+        raise InputError(f"{path}: this is {what}, not a session; pass a Parquet or CSV session file "
+                         "(validate and report take SESSION then CALIBRATION)")
     import pandas as pd
 
     try:
