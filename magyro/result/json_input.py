@@ -56,6 +56,8 @@ def read_json_object(source, what: str = "calibration", hint: str = "") -> dict:
         raise InputError(f"{where}cannot be read: permission denied (unreadable input)") from None
     except OSError as exc:
         raise InputError(f"{where}cannot be read ({exc.strerror or one_line(exc)})") from None
+    except ValueError as exc:   # a NUL in the path
+        raise InputError(f"{where}not a usable path ({one_line(exc)})") from None
     kind = next((name for magic, name in MAGIC if raw.startswith(magic)), None)
     if kind is not None:
         raise InputError(f"{where}this is {kind}, not a {what}{hint}")
