@@ -10,11 +10,11 @@ from magyro.errors import InputError
 from magyro.text import escaped
 
 MAX_CONDITION = 1e12          # K_g or R beyond this is singular to double precision
-MAX_GAIN = 1e6                # no sensor's scale factor is a million: such a K_g or R is not a calibration
-# the magnetometer units a calibration may be written in, and the factor to tesla (None: a label, no conversion)
-TESLA_PER_UNIT = {"ut": 1e-6, "µt": 1e-6, "μt": 1e-6, "microtesla": 1e-6, "nt": 1e-9, "nanotesla": 1e-9,
-                  "mt": 1e-3, "millitesla": 1e-3, "t": 1.0, "tesla": 1.0, "g": 1e-4, "gauss": 1e-4,
-                  "mg": 1e-7, "milligauss": 1e-7}
+MAX_GAIN = 1e6                # no sensor's scale factor is a million: such a K_g is not a calibration
+# the magnetometer unit labels magyro writes (magyro/io/csv_export.py MAG_UNITS) that are physical units, in gauss
+GAUSS_PER_UNIT = {"ut": 1e-2, "µt": 1e-2, "μt": 1e-2, "microtesla": 1e-2, "nt": 1e-5, "nanotesla": 1e-5,
+                  "mt": 10.0, "millitesla": 10.0, "g": 1.0, "gauss": 1.0, "mg": 1e-3, "milligauss": 1e-3,
+                  "t": 1e4, "tesla": 1e4}
 UNKNOWN_UNITS = ("", "unknown")
 
 
@@ -30,20 +30,29 @@ def already_calibrated(session, name: str) -> None:
 def same_unit(a: str, b: str) -> bool:
     """True when two magnetometer unit labels name the same unit (uT, µT and microtesla alike)."""
     ka, kb = str(a).strip().lower(), str(b).strip().lower()
-    if ka in TESLA_PER_UNIT and kb in TESLA_PER_UNIT:
-        return TESLA_PER_UNIT[ka] == TESLA_PER_UNIT[kb]
+    if ka in GAUSS_PER_UNIT and kb in GAUSS_PER_UNIT:
+        return GAUSS_PER_UNIT[ka] == GAUSS_PER_UNIT[kb]
     return ka == kb
 
 
-def check_matrices(cal) -> None:
-    """InputError when K_g or R is singular, or scales readings by more than MAX_GAIN (results would overflow)."""
+def singular_matrix(cal) -> str | None:
+    """Which of K_g and R is singular or nearly so (condition number above MAX_CONDITION), said in words; None
+    when neither is."""
     for name, M in (("gyro K_g", cal.K_g), ("magnetometer R", cal.R)):
         M = np.asarray(M, dtype=float)
         with np.errstate(all="ignore"):
             condition = np.linalg.cond(M) if np.all(np.isfinite(M)) else np.inf
         if not np.isfinite(condition) or condition > MAX_CONDITION:
-            raise InputError(f"the calibration's {name} is singular or nearly so (condition number {condition:.3g}, "
-                             f"at most {MAX_CONDITION:g}): not a calibration that can be applied")
+            return (f"the calibration's {name} is singular or nearly so (condition number {condition:.3g}, at most "
+                    f"{MAX_CONDITION:g})")
+    return None
+
+
+def check_matrices(cal) -> None:
+    """InputError when K_g or R is singular, or K_g scales rates by more than MAX_GAIN (results would overflow)."""
+    singular = singular_matrix(cal)
+    if singular is not None:
+        raise InputError(f"{singular}: not a calibration that can be applied")
     gain = float(np.max(np.abs(cal.K_g)))
     if gain > MAX_GAIN:
         raise InputError(f"the calibration's gyro K_g scales rates by {gain:.3g} (at most {MAX_GAIN:g}): not a "

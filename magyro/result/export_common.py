@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from magyro.errors import InputError
+from magyro.result.applicable import singular_matrix
 
 MODEL_LINES = (
     "gyro, frame b:  w_b = K_g y + eps_b   (rad/s, gyro frame; the bias is ADDED: not y - b)",
@@ -12,7 +13,6 @@ MODEL_LINES = (
     "magnetometer:   m_m = R (y_m - h)     (unitless, unit norm; h in the magnetometer's unit)",
     "y: raw gyro in rad/s; y_m: raw magnetometer in its unit; matrices are row-major, [row][column]",
 )
-MAX_CONDITION = 1e12   # beyond this a matrix is singular to double precision for what the exports compute
 
 
 def yaml_number(x: float) -> str:
@@ -37,9 +37,6 @@ def check_finite(cal) -> None:
     if not np.all(np.isfinite(np.concatenate([np.ravel(a) for a in (cal.K_g, cal.bias_rad_s, cal.C_b_m, cal.K,
                                                                        cal.eps_rad_s, cal.R, cal.h)]))):
         raise InputError("the calibration holds a number that is not finite; nothing to export")
-    for name, M in (("gyro K_g", cal.K_g), ("magnetometer R", cal.R)):
-        with np.errstate(all="ignore"):
-            condition = np.linalg.cond(M)
-        if not np.isfinite(condition) or condition > MAX_CONDITION:
-            raise InputError(f"the calibration's {name} is singular or nearly so (condition number {condition:.3g}, at most "
-                             f"{MAX_CONDITION:g}): it cannot be inverted; nothing to export")
+    singular = singular_matrix(cal)
+    if singular is not None:
+        raise InputError(f"{singular}: it cannot be inverted; nothing to export")

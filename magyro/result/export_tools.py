@@ -25,13 +25,11 @@ import json
 import numpy as np
 
 from magyro.errors import InputError
+from magyro.result.applicable import GAUSS_PER_UNIT
 from magyro.result.calibration import Calibration
 from magyro.result.export_common import check_finite, yaml_array, yaml_number
 from magyro.text import escaped
 
-# the magnetometer unit labels magyro writes (magyro/io/csv_export.py MAG_UNITS), in gauss
-GAUSS_PER_UNIT = {"ut": 1e-2, "µt": 1e-2, "μt": 1e-2, "microtesla": 1e-2, "nt": 1e-5, "nanotesla": 1e-5,
-                  "g": 1.0, "gauss": 1.0, "mg": 1e-3, "milligauss": 1e-3, "t": 1e4, "tesla": 1e4}
 RAD2DEG = 180.0 / np.pi
 
 
