@@ -311,16 +311,15 @@ def apply_file(calibration_path, session_path, output, frame: str = "b", gyro_un
     from magyro.io import check_outputs
     check_outputs([calibration_path, session_path], [output])  # before any work: no input overwritten, writable
     from magyro.io import load_session, write_session
+    from magyro.result.applicable import check_applicable, check_finite_result
 
     if frame not in ("b", "m"):
         raise InputError(f"unknown frame '{frame}'; use b (the gyro's) or m (the magnetometer's)")
     cal = Calibration.from_json(calibration_path)
     session = load_session(session_path, gyro_unit=gyro_unit, mag_unit=mag_unit)
-    if session.metadata.get("calibrated") == "true":
-        raise InputError(f"{session_path}: already calibrated (by {session.metadata.get('calibration', 'a calibration')}, "
-                         f"frame {session.metadata.get('calibration_frame', '?')}); applying a calibration twice "
-                         "corrupts the rates: apply it to the raw session")
+    check_applicable(cal, session, str(session_path))   # not twice, not in another unit, no absurd matrix
     rates_rad_s, field = cal.apply(session.gyro_rad_s, session.mag, frame=frame)
+    check_finite_result(rates_rad_s, field)
     metadata = {**session.metadata, "calibrated": "true", "calibration": str(calibration_path),
                 "calibration_frame": frame, "calibrated_model": (
                     "gyro = K_g y + eps_b (rad/s, gyro frame b)" if frame == "b" else

@@ -26,7 +26,8 @@ import pytest
 import magyro
 from magyro.errors import InputError
 from magyro.io import load_session, write_session
-from magyro.live.monitor import GROUPS, ExcitationMonitor, Predictor
+from magyro.live.monitor import ExcitationMonitor
+from magyro.live.prediction import GROUPS, Predictor
 from magyro.live.sources import LineParser, resolve_source
 from magyro.live.stream import session_lines, stream_session
 from magyro.observability.gate import noise_matrix

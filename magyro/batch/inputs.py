@@ -47,25 +47,68 @@ def devices_from_inputs(inputs: list[str]) -> list[Device]:
     for text in inputs:
         devices.extend(devices_from_input(str(text)))
     check_unique(devices)
+    check_readable(devices)
     return devices
 
 
 def devices_from_input(text: str) -> list[Device]:
     path = Path(text)
     if path.is_dir():
-        files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in SESSION_SUFFIXES
-                       and not p.name.endswith(".truth.json") and p.name != "manifest.csv")
+        candidates = sorted(p for p in path.iterdir() if p.suffix.lower() in SESSION_SUFFIXES
+                            and p.name != "manifest.csv" and not p.name.startswith("."))
+        check_links(candidates)
+        files = [p for p in candidates if p.is_file() and not is_batch_summary(p)]
         if not files:
             raise InputError(f"{text}: a folder with no session file (.parquet or .csv) directly in it")
         return [device_from_file(p) for p in files]
     if path.is_file():
         return manifest_devices(path) if is_manifest(path) else [device_from_file(path)]
     if glob.has_magic(text):
-        files = sorted(Path(p) for p in glob.glob(text, recursive=True) if Path(p).is_file())
+        matches = sorted(Path(p) for p in glob.glob(text, recursive=True))
+        check_links(matches)
+        files = [p for p in matches if p.is_file()]
         if not files:
             raise InputError(f"{text}: no file matches this pattern")
         return [device_from_file(p) for p in files]
     raise InputError(f"{text}: no such file or folder")
+
+
+def check_links(paths: list[Path]) -> None:
+    """InputError for a symbolic link that leads nowhere (dangling, or a loop): named, not silently dropped."""
+    for p in paths:
+        if p.is_symlink() and not p.exists():
+            raise InputError(f"{p}: a symbolic link that leads to no file (dangling, or a loop); remove it or fix "
+                             "its target")
+
+
+def is_batch_summary(path: Path) -> bool:
+    """True for a fleet summary a batch wrote (summary.parquet / summary.csv with the summary's columns): in a
+    folder that is also OUTDIR it is the batch's own output, never a device. A recording of that name is not."""
+    from magyro.batch.summary import FILES, SUMMARY_COLUMNS
+
+    if path.name not in (FILES["parquet"], FILES["csv"]):
+        return False
+    try:
+        if path.suffix == ".parquet":
+            import pyarrow.parquet as pq
+
+            return pq.read_schema(path).names == list(SUMMARY_COLUMNS)
+        with open(path, newline="", encoding="utf-8", errors="replace") as f:
+            return next(csv.reader(f), []) == list(SUMMARY_COLUMNS)
+    except Exception:   # noqa: BLE001 - unreadable as a summary: then it is not one (the device reader says why)
+        return False
+
+
+def check_readable(devices: list[Device]) -> None:
+    """InputError naming the first session that cannot be opened for reading (before any work)."""
+    for d in devices:
+        try:
+            with open(d.session, "rb"):
+                pass
+        except PermissionError:
+            raise InputError(f"{d.session}: cannot be read: permission denied (unreadable input)") from None
+        except OSError as exc:
+            raise InputError(f"{d.session}: cannot be read ({exc.strerror or exc})") from None
 
 
 def device_from_file(path: Path) -> Device:
@@ -79,17 +122,33 @@ def is_manifest(path: Path) -> bool:
     if path.suffix.lower() != ".csv":
         return False
     try:
-        with open(path, newline="", encoding="utf-8") as f:
-            header = next(csv.reader(f), [])
-    except (OSError, UnicodeDecodeError):
+        with open(path, "rb") as f:
+            first = f.readline(1 << 16).decode("utf-8", errors="replace").lstrip("\ufeff")
+    except OSError:
         return False
+    header = next(csv.reader([first]), [])
     return all(c in [h.strip() for h in header] for c in MANIFEST_COLUMNS)
+
+
+def manifest_text(path: Path) -> str:
+    """The manifest's text; InputError naming the first line that is not UTF-8."""
+    try:
+        raw = path.read_bytes()
+    except PermissionError:
+        raise InputError(f"{path}: cannot be read: permission denied (unreadable input)") from None
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise InputError(f"{path} line {line}: not UTF-8 text (byte {exc.start}); a manifest is a UTF-8 CSV") from None
 
 
 def manifest_devices(path: Path) -> list[Device]:
     """The devices of a manifest CSV (device_id, session relative to the manifest's folder)."""
     devices = []
-    with open(path, newline="", encoding="utf-8") as f:
+    import io
+
+    with io.StringIO(manifest_text(path), newline="") as f:
         for line, record in enumerate(csv.DictReader(f), start=2):
             record = {(k or "").strip(): (v or "").strip() for k, v in record.items()}
             device_id, session = record.get("device_id", ""), record.get("session", "")

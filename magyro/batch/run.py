@@ -35,6 +35,7 @@ from magyro.batch.inputs import Device, devices_from_inputs
 from magyro.batch.row import CRASHED, row_from_failure
 from magyro.batch.task import DeviceTask, calibrate_device
 from magyro.errors import InputError
+from magyro.io.atomic import check_outputs
 from magyro.options import Options
 
 ROW_SCHEMA = "magyro.batch-row/1"
@@ -130,12 +131,35 @@ def prepare_outdir(outdir, devices: list[Device], reports: bool) -> Path:
         if any(_inside(d.session, f) for f in folders):
             raise InputError(f"{d.session} is inside {out}'s own folders, which the batch writes: move the sessions "
                              "or choose another output folder")
+    made = [f for f in [out] + folders if not f.exists()]
     try:
         for folder in folders:
             folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
+        check_outputs([d.session for d in devices], output_paths(out, devices, reports))  # an output is never an input
+    except (OSError, InputError) as exc:
+        for folder in reversed(made):   # refused before any work: leave no folder behind
+            try:
+                folder.rmdir()
+            except OSError:
+                pass
+        if isinstance(exc, InputError):
+            raise
         raise InputError(f"{out}: cannot make the batch's output folders ({exc.strerror or exc})") from None
     return out
+
+
+def output_paths(out: Path, devices: list[Device], reports: bool) -> list[Path]:
+    """Every file the batch may write, each confined to its folder: per device its calibration, row (and report),
+    then the summary's files."""
+    from magyro.batch.summary import FILES
+    from magyro.io.atomic import confined
+
+    paths = []
+    for d in devices:
+        paths += [confined(out / "calibrations", f"{d.device_id}.json"), confined(out / "rows", f"{d.device_id}.json")]
+        if reports:
+            paths.append(confined(out / "reports", f"{d.device_id}.html"))
+    return paths + [out / name for name in FILES.values()]
 
 
 def _inside(path: Path, folder: Path) -> bool:

@@ -11,7 +11,9 @@ from magyro.errors import MagyroError
 
 
 def fail(message: str, code: int) -> None:
-    typer.echo(f"magyro: {message}", err=True)
+    from magyro.text import escaped   # a message may quote input: no control or bidi character reaches the terminal
+
+    typer.echo(f"magyro: {escaped(message, keep_lines=True)}", err=True)
     raise typer.Exit(code)
 
 

@@ -54,6 +54,20 @@ def check_outputs(inputs: Iterable, outputs: Iterable) -> None:
         checked.update(dict.fromkeys(keys, out))
 
 
+def confined(folder, name: str) -> Path:
+    """folder/name, checked to stay inside `folder` once resolved (no '..', no absolute name, no symlinked way
+    out); InputError naming the name otherwise. Every name read from input that becomes a path goes through here."""
+    from magyro.text import escaped
+
+    folder, name = Path(folder), str(name)
+    path = folder / name
+    if ("\0" in name or name in ("", ".", "..") or Path(name).is_absolute() or path.name != name
+            or _resolved(path.parent) != _resolved(folder)):
+        raise InputError(f"the name '{escaped(name[:100])}' would write outside {folder} (it holds a path or is "
+                         "not a file name); nothing written")
+    return path
+
+
 def file_identities(p: Path) -> tuple:
     """What names one file, for lookups: its resolved path, and its device and inode when it exists (a symlink
     or a hard link is the file it points to). Two paths name the same file exactly when they share one."""
@@ -124,6 +138,7 @@ def write_atomically(path: Path, write: Callable[[str], None]) -> None:
     (disk full, permission) is raised again naming `path`, not the temp file.
     """
     path = Path(path)
+    remove_stale_temps(path)
     try:
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     except OSError as exc:
@@ -140,6 +155,39 @@ def write_atomically(path: Path, write: Callable[[str], None]) -> None:
         if isinstance(exc, OSError):
             raise _naming_target(exc, path, tmp) from None
         raise
+
+
+STALE_TEMP_S = 15 * 60   # a temp file of ours untouched this long belongs to a run that was killed
+_swept: set = set()      # folders already swept by this process (a batch writes thousands of files into one)
+
+
+def remove_stale_temps(path: Path, older_than_s: float = STALE_TEMP_S) -> int:
+    """Remove the temp files killed runs left in `path`'s folder (`.NAME.XXXXXXXX.tmp` / `.check`, magyro's own
+    pattern, untouched for `older_than_s`; a write in progress keeps its file fresh), once per folder and process.
+    The number removed."""
+    import re
+    import time
+
+    pattern = re.compile(r"^\..+\.[a-z0-9_]{8}\.(tmp|check)$")   # tempfile.mkstemp's names
+    removed = 0
+    folder = os.path.abspath(path.parent)
+    if folder in _swept:
+        return 0
+    _swept.add(folder)
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return 0
+    now = time.time()
+    for entry in entries:
+        try:
+            if pattern.match(entry.name) and entry.is_file(follow_symlinks=False) \
+                    and now - entry.stat(follow_symlinks=False).st_mtime > older_than_s:
+                os.unlink(entry.path)
+                removed += 1
+        except OSError:
+            pass
+    return removed
 
 
 def _naming_target(exc: OSError, path: Path, tmp: str | None) -> OSError:

@@ -41,7 +41,20 @@ def load_session(path, gyro_unit: str | None = None, mag_unit: str | None = None
     """
     path = Path(path)
     table, metadata = _read_table(path)
+    check_unit_label(path, mag_unit if mag_unit is not None else metadata.get("mag_unit", ""))
     return session_from_table(table, metadata, str(path), gyro_unit, mag_unit)
+
+
+def check_unit_label(path, unit) -> None:
+    """InputError when the magnetometer's unit label (printed in tables, written into exports) holds control or
+    bidi characters or is too long to be a unit: it would act on a terminal or in a C comment."""
+    from magyro.text import escaped, unsafe_characters
+
+    unit = str(unit)
+    bad = unsafe_characters(unit)
+    if bad or len(unit) > 40:
+        why = f"it holds control or bidi characters ({', '.join(bad)})" if bad else "longer than 40 characters"
+        raise InputError(f"{path}: the magnetometer unit '{escaped(unit[:40])}' is not a unit: {why}")
 
 
 def _read_table(path: Path) -> tuple:
@@ -120,9 +133,17 @@ def _user_metadata(raw: dict | None) -> dict:
 
 def _read_csv(path: Path):
     with open(path, "rb") as f:
-        if b"\x00" in f.read(8192):
-            raise InputError(f"{path}: binary data, not a CSV text file; "
-                             f"pass a CSV or a .parquet session file")
+        head = f.read(8192)
+    if b"\x00" in head:
+        raise InputError(f"{path}: binary data, not a CSV text file; "
+                         f"pass a CSV or a .parquet session file")
+    if head.lstrip().startswith(b"{"):   # a JSON file given where a session goes: say what it is
+        import re
+
+        found = re.search(rb'"schema"\s*:\s*"(magyro\.[a-z-]+)/', head)
+        what = f"a magyro JSON file ({found.group(1).decode()})" if found else "a JSON file"
+        raise InputError(f"{path}: this is {what}, not a session; pass a Parquet or CSV session file "
+                         "(validate and report take SESSION then CALIBRATION)")
     import pandas as pd
 
     try:

@@ -16,7 +16,8 @@ import math
 import sys
 import time
 
-from magyro.live.monitor import GROUP_LABELS, GROUPS, Status
+from magyro.live.monitor import Status
+from magyro.live.prediction import GROUP_LABELS, GROUPS
 
 PLAIN_EVERY_S = 1.0
 REFRESH_PER_SECOND = 8

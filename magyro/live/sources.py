@@ -4,7 +4,8 @@ A line is CSV, `t,gx,gy,gz,mx,my,mz`: time in seconds, the gyro (rad/s, or deg/s
 `--gyro-unit deg/s`), the magnetometer in any unit. Sensors sampled apart may come on lines
 of their own, the other sensor's fields left empty: `t,gx,gy,gz,,,` and `t,,,,mx,my,mz`
 (`t,gx,gy,gz` alone is a gyro line too). A header line, a line that is not numbers, a
-sample with NaN/inf, or a sample whose time does not increase for its sensor is skipped and
+sample with NaN/inf or a value beyond any sensor's range (MAX_ABS_VALUE), a line longer than
+MAX_LINE_BYTES, or a sample whose time does not increase for its sensor is skipped and
 counted (`LineCounts`), never fatal.
 
 Sources (each an iterator of byte chunks, read by `LineReader` in a thread of its own so
@@ -37,6 +38,9 @@ SERIAL_TIMEOUT_S = 0.2
 DEFAULT_BAUD = 115200
 SERIAL_NAME = re.compile(r"^(/dev/tty|/dev/cu\.|/dev/serial/)|^COM\d+$", re.IGNORECASE)
 GYRO_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0}
+MAX_LINE_BYTES = 4096       # a sample line is under 200 bytes: a longer one is skipped as bad, never buffered whole
+MAX_ABS_VALUE = 1e9         # a gyro (rad/s) or magnetometer reading beyond this is not a reading: skipped as bad
+MAX_ABS_TIME_S = 1e12       # a time stamp beyond this (seconds; Unix time is 1.7e9) is not one: skipped as bad
 
 
 # --------------------------------------------------------------------------- lines to samples
@@ -71,25 +75,54 @@ class LineParser:
             raise InputError(f"--gyro-unit {gyro_unit!r}: give rad/s or deg/s")
         self.gyro_scale = GYRO_UNITS[gyro_unit]
         self.counts = LineCounts()
-        self._tail = b""
+        self._tail: list[bytes] = []     # the pieces of a line not yet ended (joined once, when it ends)
+        self._tail_bytes = 0
+        self._dropping = False           # inside a line longer than MAX_LINE_BYTES: skipped up to its newline
         self._last_t = [-math.inf, -math.inf]
 
     def feed(self, data: bytes) -> tuple[list, list]:
-        """Parse the complete lines in `data` (a partial last line waits for the rest)."""
-        data = self._tail + data
+        """Parse the complete lines in `data` (a partial last line waits for the rest). Linear in the input: a
+        line's pieces are kept apart until it ends, and a line longer than MAX_LINE_BYTES is dropped as it grows."""
         lines = data.split(b"\n")
-        self._tail = lines.pop()
-        return self.parse_lines(lines)
+        last = lines.pop()
+        complete = []
+        if lines:   # the line waiting in the tail ends here
+            first = lines.pop(0)
+            if not self._dropping:
+                complete.append(b"".join(self._tail) + first)
+            self._tail, self._tail_bytes, self._dropping = [], 0, False
+            complete += lines
+        rows = self.parse_lines(complete)
+        self._keep(last)
+        return rows
+
+    def _keep(self, piece: bytes) -> None:
+        if self._dropping or not piece:
+            return
+        self._tail.append(piece)
+        self._tail_bytes += len(piece)
+        if self._tail_bytes > MAX_LINE_BYTES:
+            self._tail, self._tail_bytes, self._dropping = [], 0, True
+            self._too_long()
+
+    def _too_long(self) -> None:
+        self.counts.lines += 1
+        self.counts.bad += 1
+        self.counts.last_bad = f"a line longer than {MAX_LINE_BYTES} bytes"
 
     def finish(self) -> tuple[list, list]:
         """The last line, when the input ended without a newline."""
-        tail, self._tail = self._tail, b""
+        tail = b"".join(self._tail)
+        self._tail, self._tail_bytes, self._dropping = [], 0, False
         return self.parse_lines([tail]) if tail.strip() else ([], [])
 
     def parse_lines(self, lines) -> tuple[list, list]:
         gyro, mag = [], []
         c = self.counts
         for raw in lines:
+            if len(raw) > MAX_LINE_BYTES:
+                self._too_long()
+                continue
             line = raw.strip()
             if not line:
                 continue
@@ -109,7 +142,8 @@ class LineParser:
             g, m = values[1:4], values[4:7]
             has_g, has_m = _complete(g), _complete(m)
             if (not has_g and any(v is not None for v in g)) or (not has_m and any(v is not None for v in m)) \
-                    or not (has_g or has_m) or not all(math.isfinite(v) for v in values if v is not None):
+                    or not (has_g or has_m) or not all(math.isfinite(v) for v in values if v is not None) \
+                    or abs(t) > MAX_ABS_TIME_S or any(abs(v) > MAX_ABS_VALUE for v in values[1:] if v is not None):
                 self._bad(line)
                 continue
             if has_g:

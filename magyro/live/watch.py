@@ -42,7 +42,8 @@ def watch(source: str, *, output=None, status=None, serial: bool = False, baud: 
     SIGTERM). Raises InputError for an unusable source or output (before any work)."""
     from magyro.io import check_outputs
     from magyro.live.display import StatusWriter, make_display
-    from magyro.live.monitor import ExcitationMonitor, Predictor
+    from magyro.live.monitor import ExcitationMonitor
+    from magyro.live.prediction import Predictor
     from magyro.live.sources import END, LineParser, LineReader, resolve_source
     from magyro.observability.report import Targets
 
@@ -67,24 +68,37 @@ def watch(source: str, *, output=None, status=None, serial: bool = False, baud: 
     reason = "end of input"
     last = None
     saved = False
+    error = None
     try:
         try:
             reason, last = _loop(monitor, reader, display, writer, parser, idle, END)
         except (KeyboardInterrupt, Stop) as stop:
             reason = "interrupted (Ctrl-C)" if isinstance(stop, KeyboardInterrupt) else "stopped (SIGTERM)"
+        except Exception as exc:  # noqa: BLE001 - its own error too: what was received is saved, then it is raised
+            error, reason = exc, "stopped by an error"
         finally:
             _set_signal(signal.SIGTERM, signal.SIG_IGN)
             old_int = _set_signal(signal.SIGINT, signal.SIG_IGN)     # the save is not to be cut short
             try:
-                display.close()
-                predictor.close()
+                _quietly(display.close, predictor.close)
                 monitor.predictor = None
                 reader.stop()
-                _drain(reader, monitor, END)
-                last = monitor.update() if monitor.gyro.n or monitor.mag.n else last
-                saved = _save(monitor, output)
+                _quietly(lambda: _drain(reader, monitor, END))
+                saved = _save(monitor, output)        # first: nothing after it may lose the recording
+                if error is None and (monitor.gyro.n or monitor.mag.n):
+                    try:
+                        last = monitor.update()
+                    except Exception as exc:  # noqa: BLE001 - the session is saved; the error is reported
+                        error, reason = exc, "stopped by an error"
             finally:
                 _set_signal(signal.SIGINT, old_int)
+        if error is not None:
+            from magyro.errors import MagyroError
+
+            if isinstance(error, MagyroError):
+                raise error
+            raise RuntimeError(f"{type(error).__name__}: {error}; "
+                               + (f"what was received is saved in {output}" if saved else "nothing was saved")) from error
         if reason in ("end of input",) or reason.startswith("no new data"):
             try:
                 last = _final_prediction(monitor, targets) or last
@@ -139,6 +153,15 @@ def _drain(reader, monitor, END) -> None:
         monitor.add(*item)
 
 
+def _quietly(*steps) -> None:
+    """Run each cleanup step; one that fails does not stop the others (nor the save after them)."""
+    for step in steps:
+        try:
+            step()
+        except Exception:  # noqa: BLE001 - a cleanup failure must not lose the recording
+            pass
+
+
 def _opened_first(chunks):
     """Start a generator so that opening its source (a serial port) raises here, in the main thread."""
     first = next(chunks, None)
@@ -178,7 +201,7 @@ def _save(monitor, output) -> bool:
 
 def _final_prediction(monitor, targets):
     """When the input ended by itself: magyro observe's prediction on the whole recording, at once."""
-    from magyro.live.monitor import meets, predict_session
+    from magyro.live.prediction import meets, predict_session
 
     session = monitor.session()
     if session is None or monitor.status is None or monitor.status.rank < 12:

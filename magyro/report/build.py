@@ -49,6 +49,9 @@ def report_file(session_path, calibration_path, output, *, split_check: bool = T
     _require_matplotlib()
     say("reading the session")
     session = load_session(session_path, gyro_unit=gyro_unit, mag_unit=mag_unit)
+    from magyro.result.applicable import check_applicable
+
+    check_applicable(cal, session, str(session_path))   # not twice, not in another unit, no absurd matrix
     report = build_report(session, cal, split_check=split_check, progress=say, session_path=str(session_path),
                           calibration_path=str(calibration_path))
     if output is not None:

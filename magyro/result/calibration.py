@@ -14,6 +14,7 @@ from magyro.front.findings import RecordingCheck
 from magyro.result.consistency_record import SplitCheck
 from magyro.result.fit import FilterFit, LeastSquaresFit, fit_from_dict
 from magyro.result.trajectory import AttitudeTrajectory
+from magyro.text import escaped, unsafe_characters
 from magyro.result.parts import (Excitation, NoiseReport, RestCheck, SolverReport, Std, as_list, read_array,
                                  read_number, read_section)
 
@@ -187,73 +188,107 @@ class Calibration:
         return "\n".join(lines)
 
 
+HINT = "; pass the calibration JSON written by magyro solve"
+# the type of each top-level key a calibration may hold (None: may be null); sections are checked in their reader
+TOP_LEVEL = {"schema": (str,), "units": (dict, None), "gyro": (dict,), "misalignment": (dict,),
+             "magnetometer": (dict,), "field_i": (list,), "time_offset_s": (int, float), "time_offset_estimated": (bool,),
+             "std": (dict, None), "std_white": (dict, None), "rests": (dict, None), "warnings": (list,),
+             "observability": (dict,), "solver": (dict,), "noise": (dict, None), "fit": (dict, None),
+             "consistency": (dict, None), "recording": (dict, None)}
+TYPE_NAMES = {str: "a string", dict: "an object", list: "a list", bool: "true or false", int: "a number",
+              float: "a number", None: "null"}
+
+
 def read_json(source) -> dict:
-    """The JSON object in a file (a path) or a string: InputError for a missing, unreadable or cut-short file."""
-    if isinstance(source, (str, Path)) and not str(source).lstrip().startswith("{"):
-        path = Path(source)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise InputError(f"{path}: no such file; pass the calibration JSON written by magyro solve") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(f"{path}: cannot be read ({exc})") from None
-        where = f"{path}: "
-    else:
-        text, where = str(source), ""
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        cut = " (the file looks cut short)" if exc.pos >= len(text.rstrip()) else ""
-        raise InputError(f"{where}not valid JSON: {exc.msg} at line {exc.lineno}{cut}") from None
-    if not isinstance(data, dict):
-        raise InputError(f"{where}a calibration is a JSON object, not a {type(data).__name__}")
-    return data
+    """The JSON object in a file (a path) or a string of JSON text: InputError for a missing, unreadable, cut-short,
+    oversized or too deeply nested file, or a file of another kind (a session given in its place)."""
+    from magyro.result.json_input import read_json_object
+
+    return read_json_object(source, "calibration", HINT)
+
+
+def check_top_level(data: dict) -> None:
+    """Refuse a top-level key of the wrong type, naming it and what it must be (before any section is read)."""
+    for key, kinds in TOP_LEVEL.items():
+        if key not in data:
+            continue
+        value = data[key]
+        ok = (value is None and None in kinds) or (
+            value is not None and isinstance(value, tuple(k for k in kinds if k is not None))
+            and not (isinstance(value, bool) and bool not in kinds))
+        if not ok:
+            must = " or ".join(dict.fromkeys(TYPE_NAMES[k] for k in kinds))
+            raise InputError(f"the calibration's {key} must be {must}, not {type(value).__name__}")
+    if not all(isinstance(w, str) for w in data.get("warnings", [])):
+        raise InputError("the calibration's warnings must be a list of strings")
+    if "time_offset_s" in data and not np.isfinite(data["time_offset_s"]):
+        raise InputError(f"the calibration's time_offset_s must be a finite number, not {data['time_offset_s']}")
 
 
 def check_schema(data: dict) -> None:
     """Refuse a file that is not a calibration of this schema, or whose units are not the ones it was written in."""
     schema = data.get("schema")
+    if schema is not None and not isinstance(schema, str):
+        raise InputError(f"not a magyro calibration: schema must be a string, not {type(schema).__name__}")
     if schema != SCHEMA:
         what = KNOWN_SCHEMAS.get(schema)
         if what:
-            raise InputError(f"this is {what}; pass the calibration JSON written by magyro solve")
-        found = "no schema" if schema is None else f"schema {schema!r}"
+            raise InputError(f"this is {what}{HINT}")
+        found = "no schema" if schema is None else f"schema {schema[:60]!r}"
         raise InputError(f"not a magyro calibration: {found}, expected {SCHEMA!r} (written by magyro solve)")
+    check_top_level(data)
     units = data.get("units")
     if units is None:
         return  # files of this schema written before `units` existed: the units are those of the key names
-    expected = {**UNITS, "magnetometer": data.get("magnetometer", {}).get("unit")}
+    expected = {**UNITS, "magnetometer": read_section(data, "magnetometer").get("unit")}
     wrong = {k: v for k, v in units.items() if k in expected and v != expected[k]}
-    if wrong or not isinstance(units, dict):
-        raise InputError(f"the calibration's units {wrong or units} are not {expected}: this version of magyro "
+    if wrong:
+        raise InputError(f"the calibration's units {wrong} are not {expected}: this version of magyro "
                          "cannot read them")
 
 
 def calibration_from_dict(data: dict) -> Calibration:
-    """The Calibration a calibration JSON describes (see `Calibration.from_json`)."""
+    """The Calibration a calibration JSON describes (see `Calibration.from_json`); InputError naming the key for
+    anything of the wrong type, shape or value."""
     check_schema(data)
+    try:
+        return _calibration_from_checked(data)
+    except (TypeError, ValueError, KeyError, AttributeError, IndexError, OverflowError) as exc:
+        # a section of another shape than this version writes, in a key not checked one by one above
+        from magyro.errors import one_line
+
+        raise InputError(f"the calibration holds a value this version of magyro cannot read ({one_line(exc)})") from None
+
+
+def _calibration_from_checked(data: dict) -> Calibration:
     gyro, mis, mag = (read_section(data, key) for key in ("gyro", "misalignment", "magnetometer"))
     K_g, C = read_array(gyro, "K_g", (3, 3), "gyro"), read_array(mis, "C_b_m", (3, 3), "misalignment")
     bias = read_array(gyro, "bias_rad_s", (3,), "gyro")
     if not np.allclose(C.T @ C, np.eye(3), atol=1e-6) or np.linalg.det(C) < 0:
         raise InputError("misalignment.C_b_m is not a proper rotation matrix")
-    std = read_section(data, "std")
     unit = mag.get("unit")
     if not isinstance(unit, str):
         raise InputError("magnetometer.unit must be a string")
+    if unsafe_characters(unit) or len(unit) > 40:
+        raise InputError(f"magnetometer.unit '{escaped(unit[:40])}' is not a unit: "
+                         + (f"it holds control or bidi characters ({', '.join(unsafe_characters(unit))})"
+                            if unsafe_characters(unit) else "longer than 40 characters"))
+    std = data.get("std")     # a calibration from another tool may have none: its parameters taken as given
+    solver = read_section(data, "solver")
     rests, noise, consistency = data.get("rests"), data.get("noise"), data.get("consistency")
     return Calibration(
-        K_g=K_g, bias_rad_s=bias, K=read_array(gyro, "K", (3, 3), "gyro"),
+        K_g=K_g, bias_rad_s=bias, K=read_array(gyro, "K", (3, 3), "gyro") if "K" in gyro else C @ K_g,
         eps_rad_s=read_array(gyro, "eps_m_rad_s", (3,), "gyro") if "eps_m_rad_s" in gyro else C @ bias, C_b_m=C,
         R=read_array(mag, "R", (3, 3), "magnetometer"), h=read_array(mag, "h", (3,), "magnetometer"), mag_unit=unit,
-        field_i=read_array(data, "field_i", (3,), "the calibration"), std=Std.from_dict(std),
+        field_i=read_array(data, "field_i", (3,), "the calibration"),
+        std=Std.zero() if std is None else Std.from_dict(std),
         observability=Excitation.from_dict(read_section(data, "observability")),
-        solver=SolverReport.from_dict(read_section(data, "solver")),
-        noise=None if noise is None else NoiseReport.from_dict(noise), fit=fit_from_dict(data["solver"]["method"], data.get("fit")),
-        time_offset_s=read_number(data, "time_offset_s", "the calibration") if "time_offset_s" in data else 0.0,
+        solver=SolverReport.from_dict(solver),
+        noise=None if noise is None else NoiseReport.from_dict(noise), fit=fit_from_dict(solver["method"], data.get("fit")),
+        time_offset_s=read_number(data, "time_offset_s", "the calibration", finite=True) if "time_offset_s" in data else 0.0,
         time_offset_estimated=bool(data.get("time_offset_estimated", False)),
         rests=None if rests is None else RestCheck.from_dict(rests), warnings=list(data.get("warnings", [])),
         consistency=None if consistency is None else SplitCheck.from_dict(consistency),
         recording=None if data.get("recording") is None else RecordingCheck.from_dict(data["recording"]),
-        std_white=None if data.get("std_white") is None else Std.from_dict(data["std_white"]),
+        std_white=None if data.get("std_white") is None else Std.from_dict(data["std_white"], "std_white"),
     )

@@ -19,16 +19,11 @@ import numpy as np
 
 from magyro.errors import InputError
 from magyro.result.calibration import SCHEMA, Calibration
+from magyro.result.export_common import MODEL_LINES, check_finite, yaml_array, yaml_number  # noqa: F401 (API)
+from magyro.result.export_tools import kalibr_text, px4_text
+from magyro.text import c_comment
 
 FORMATS = ("yaml", "c", "kalibr", "px4")
-
-MODEL_LINES = (
-    "gyro, frame b:  w_b = K_g y + eps_b   (rad/s, gyro frame; the bias is ADDED: not y - b)",
-    "gyro, frame m:  w_m = K y + eps       (rad/s, magnetometer frame; K = C_b_m K_g, eps = C_b_m eps_b)",
-    "magnetometer:   m_m = R (y_m - h)     (unitless, unit norm; h in the magnetometer's unit)",
-    "y: raw gyro in rad/s; y_m: raw magnetometer in its unit; matrices are row-major, [row][column]",
-)
-
 
 def export_text(cal: Calibration, fmt: str, source: str = "") -> str:
     """The calibration as text in format `fmt` (one of FORMATS); `source` names where it came from."""
@@ -37,32 +32,11 @@ def export_text(cal: Calibration, fmt: str, source: str = "") -> str:
     if fmt == "c":
         return c_header(cal, source)
     if fmt in ("kalibr", "px4"):
-        from magyro.result.export_tools import kalibr_text, px4_text
-
         return (kalibr_text if fmt == "kalibr" else px4_text)(cal, source)
     raise InputError(f"unknown export format '{fmt}'; use one of: {', '.join(FORMATS)}")
 
 
 # --------------------------------------------------------------------------- YAML
-
-
-def yaml_number(x: float) -> str:
-    """17 significant digits, always with a '.' and an exponent: a float in YAML 1.1 and 1.2, and in JSON."""
-    return f"{float(x):.16e}"
-
-
-def yaml_array(a) -> str:
-    a = np.asarray(a, dtype=float)
-    if a.ndim == 1:
-        return "[" + ", ".join(yaml_number(v) for v in a) + "]"
-    return "[" + ", ".join(yaml_array(row) for row in a) + "]"
-
-
-def check_finite(cal: Calibration) -> None:
-    """InputError when any exported number of the calibration is not finite (every format checks this first)."""
-    if not np.all(np.isfinite(np.concatenate([np.ravel(a) for a in (cal.K_g, cal.bias_rad_s, cal.C_b_m, cal.K,
-                                                                       cal.eps_rad_s, cal.R, cal.h)]))):
-        raise InputError("the calibration holds a number that is not finite; nothing to export")
 
 
 def yaml_text(cal: Calibration, source: str = "") -> str:
@@ -95,14 +69,12 @@ def yaml_text(cal: Calibration, source: str = "") -> str:
 # --------------------------------------------------------------------------- C99 header
 
 
-def _c_comment(text: str) -> str:
-    """Text safe inside a C block comment, on one line."""
-    return " ".join(str(text).replace("*/", "* /").split())
-
-
 def _c_number(x: float) -> str:
     """The shortest decimal that reads back to the same double (C99 strtod rounds correctly)."""
-    text = repr(float(x))
+    x = float(x)
+    if not np.isfinite(x):
+        raise InputError("the export would hold a number that is not finite; nothing exported")
+    text = repr(x)
     return text if any(c in text for c in ".e") else text + ".0"
 
 
@@ -121,12 +93,12 @@ def c_header(cal: Calibration, source: str = "") -> str:
               ("magyro_K", cal.K, "[3][3]", "C_b_m K_g"),
               ("magyro_eps_rad_s", cal.eps_rad_s, "[3]", "eps = C_b_m eps_b, rad/s"),
               ("magyro_C_b_m", cal.C_b_m, "[3][3]", "gyro frame to magnetometer frame"),
-              ("magyro_R", cal.R, "[3][3]", f"magnetometer soft iron, 1/{_c_comment(cal.mag_unit)}"),
-              ("magyro_h", cal.h, "[3]", f"magnetometer hard iron, {_c_comment(cal.mag_unit)}"))
+              ("magyro_R", cal.R, "[3][3]", f"magnetometer soft iron, 1/{c_comment(cal.mag_unit)}"),
+              ("magyro_h", cal.h, "[3]", f"magnetometer hard iron, {c_comment(cal.mag_unit)}"))
     lines = ["/* magyro calibration, exported for other programs (magyro export --format c).",
-             f" * source: {_c_comment(source)}",
-             f" * magnetometer unit: {_c_comment(cal.mag_unit)}",
-             *(f" *   {_c_comment(line)}" for line in MODEL_LINES),
+             f" * source: {c_comment(source)}",
+             f" * magnetometer unit: {c_comment(cal.mag_unit)}",
+             *(f" *   {c_comment(line)}" for line in MODEL_LINES),
              " * C99, no allocation; include it in one or more .c files. */",
              "#ifndef MAGYRO_CALIBRATION_H",
              "#define MAGYRO_CALIBRATION_H",

@@ -25,17 +25,17 @@ import json
 import numpy as np
 
 from magyro.errors import InputError
+from magyro.result.applicable import GAUSS_PER_UNIT
 from magyro.result.calibration import Calibration
-from magyro.result.export import check_finite, yaml_array, yaml_number
+from magyro.result.export_common import check_finite, yaml_array, yaml_number
+from magyro.text import escaped
 
-# the magnetometer unit labels magyro writes (magyro/io/csv_units.py MAG_UNITS), in gauss
-GAUSS_PER_UNIT = {"ut": 1e-2, "µt": 1e-2, "μt": 1e-2, "microtesla": 1e-2, "nt": 1e-5, "nanotesla": 1e-5,
-                  "g": 1.0, "gauss": 1.0, "mg": 1e-3, "milligauss": 1e-3, "t": 1e4, "tesla": 1e4}
 RAD2DEG = 180.0 / np.pi
 
 
 def _one_line(text) -> str:
-    return " ".join(str(text).split())
+    """Text for one line of a comment: controls, line breaks and bidi characters written as visible escapes."""
+    return escaped(text)
 
 
 def _check_gyro(cal: Calibration) -> None:
@@ -113,7 +113,7 @@ def gauss_per_unit(unit: str) -> float:
     """The factor from the calibration's magnetometer unit to gauss; InputError for a unit with none."""
     key = str(unit).strip().lower()
     if key not in GAUSS_PER_UNIT:
-        raise InputError(f"the magnetometer unit '{unit}' cannot be converted to gauss, which PX4 expects; "
+        raise InputError(f"the magnetometer unit '{escaped(unit)}' cannot be converted to gauss, which PX4 expects; "
                          "use a calibration solved from a magnetometer in uT, nT, G, mG or T")
     return GAUSS_PER_UNIT[key]
 

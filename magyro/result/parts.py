@@ -34,21 +34,60 @@ def read_array(data: dict, key: str, shape: tuple, where: str) -> np.ndarray:
     return a
 
 
-def read_number(data: dict, key: str, where: str, kind=float):
-    """data[key] as a number of `kind`; InputError naming `where.key` otherwise."""
+def read_number(data: dict, key: str, where: str, kind=float, finite: bool = False):
+    """data[key] as a number of `kind` (an int kind: a whole, finite number of at most 15 digits; `finite`:
+    no NaN or infinity); InputError naming `where.key` otherwise."""
     if key not in data:
         raise InputError(f"{where}.{key} is missing")
     value = data[key]
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InputError(f"{where}.{key} must be a number, not {value!r}")
+        raise InputError(f"{where}.{key} must be a number, not {_shown(value)}")
+    if kind is int:
+        if not np.isfinite(value) or value != int(value) or abs(value) >= 1e15:
+            raise InputError(f"{where}.{key} must be a whole number, not {_shown(value)}")
+        return int(value)
+    if (finite or kind is not float) and not np.isfinite(value):
+        raise InputError(f"{where}.{key} must be a finite number, not {_shown(value)}")
     return kind(value)
+
+
+def read_optional_number(data: dict, key: str, where: str, default=float("nan")) -> float:
+    """data[key] as a float when present and not null (NaN allowed: magyro writes it for 'not measured'), else
+    `default`; InputError naming `where.key` for anything that is not a number."""
+    if data.get(key) is None:
+        return default
+    return read_number(data, key, where)
+
+
+def read_numbers(data: dict, key: str, where: str) -> tuple:
+    """data[key], a list of numbers (absent: empty), as a tuple of floats; InputError naming `where.key` otherwise."""
+    value = data.get(key, ())
+    if not isinstance(value, (list, tuple)) or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
+        raise InputError(f"{where}.{key} must be a list of numbers, not {_shown(value)}")
+    return tuple(float(v) for v in value)
+
+
+def read_text(data: dict, key: str, where: str, default: str | None = None) -> str:
+    """data[key] as a string (absent: `default`, when given); InputError naming `where.key` otherwise."""
+    value = data.get(key, default)
+    if not isinstance(value, str):
+        raise InputError(f"{where}.{key} must be a string, not {_shown(value)}")
+    return value
+
+
+def _shown(value) -> str:
+    """A value as it would read in a message: short, on one line."""
+    text = type(value).__name__ if isinstance(value, (dict, list)) else repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def read_section(data: dict, key: str, where: str = "the calibration") -> dict:
     """data[key] as an object; InputError naming the key otherwise."""
     value = data.get(key)
     if not isinstance(value, dict):
-        raise InputError(f"{where} has no object '{key}'" if key not in data else f"'{key}' must be an object")
+        path = key if where == "the calibration" else f"{where}.{key}"
+        raise InputError(f"{where} has no object '{key}'" if key not in data else
+                         f"{path} must be an object, not {_shown(value)}")
     return value
 
 
@@ -78,9 +117,12 @@ class Std:
         return out
 
     @classmethod
-    def from_dict(cls, data: dict) -> "Std":
-        arrays = {name: read_array(data, name, shape, "std") for name, shape in cls.SHAPES.items()}
-        return cls(**arrays, time_offset_s=read_number(data, "time_offset_s", "std") if "time_offset_s" in data else 0.0)
+    def from_dict(cls, data: dict, where: str = "std") -> "Std":
+        """The std a calibration JSON holds; a key it lacks (a calibration from another tool) is zero, unknown."""
+        arrays = {name: read_array(data, name, shape, where) if name in data else np.zeros(shape)
+                  for name, shape in cls.SHAPES.items()}
+        return cls(**arrays, time_offset_s=read_number(data, "time_offset_s", where, finite=True)
+                   if "time_offset_s" in data else 0.0)
 
     @classmethod
     def zero(cls) -> "Std":
@@ -110,8 +152,8 @@ class Excitation:
     @classmethod
     def from_dict(cls, data: dict) -> "Excitation":
         where = "observability"
-        return cls(read_number(data, "rank", where, int), read_number(data, "condition", where),
-                   float(data.get("tolerance", float("nan"))), tuple(data.get("eigenvalues_normalised", ())))
+        return cls(read_number(data, "rank", where, int), read_optional_number(data, "condition", where),
+                   read_optional_number(data, "tolerance", where), read_numbers(data, "eigenvalues_normalised", where))
 
 
 @dataclass(frozen=True)
@@ -136,7 +178,7 @@ class SolverReport:
             raise InputError("solver.method and solver.status must be strings")
         common = {f.name for f in fields(cls)} - {"details"}
         return cls(data["method"], data["status"], read_number(data, "iterations", where, int),
-                   read_number(data, "seconds", where), float(data.get("total_seconds", float("nan"))),
+                   read_number(data, "seconds", where), read_optional_number(data, "total_seconds", where),
                    {k: v for k, v in data.items() if k not in common})
 
 
@@ -185,11 +227,23 @@ class NoiseReport:
     def from_dict(cls, data: dict) -> "NoiseReport":
         where = "noise"
         disturbance = data.get("field_disturbance")
+        estimated = data.get("mag_std_estimated")
+        if estimated is not None and not isinstance(estimated, (bool, int, float)):
+            raise InputError(f"{where}.mag_std_estimated must be a number or a boolean, not {_shown(estimated)}")
+        gyro_estimated = data.get("gyro_density_estimated")
+        if gyro_estimated is not None and not isinstance(gyro_estimated, (bool, int, float)):
+            raise InputError(f"{where}.gyro_density_estimated must be a number or a boolean, not {_shown(gyro_estimated)}")
+        redundancy = data.get("redundancy")
+        if redundancy is not None and not (isinstance(redundancy, dict) and all(
+                isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool)
+                for k, v in redundancy.items())):
+            raise InputError(f"{where}.redundancy must be an object of numbers, not {_shown(redundancy)}")
         return cls(read_number(data, "gyro_density_rad_s_sqrt_hz", where), read_number(data, "mag_std", where),
-                   data.get("mag_std_estimated"), str(data.get("source", "")),
-                   None if disturbance is None else FieldDisturbance.from_dict(disturbance),
-                   data.get("gyro_density_estimated"), str(data.get("gyro_source", "")),
-                   str(data.get("mag_source", "")), data.get("redundancy"))
+                   estimated, read_text(data, "source", where, ""),
+                   None if disturbance is None else FieldDisturbance.from_dict(read_section(data, "field_disturbance",
+                                                                                             where)),
+                   gyro_estimated, read_text(data, "gyro_source", where, ""),
+                   read_text(data, "mag_source", where, ""), redundancy)
 
 
 @dataclass(frozen=True)
@@ -228,6 +282,10 @@ class RestCheck:
     @classmethod
     def from_dict(cls, data: dict) -> "RestCheck":
         where = "rests"
-        return cls(tuple(tuple(s) for s in data.get("segments_s", ())), read_number(data, "seconds", where),
+        segments = data.get("segments_s", ())
+        if not isinstance(segments, list) or not all(isinstance(x, list) for x in segments):
+            raise InputError(f"{where}.segments_s must be a list of [start, end] pairs, not {_shown(segments)}")
+        return cls(tuple(read_numbers({"s": x}, "s", f"{where}.segments_s") for x in segments),
+                   read_number(data, "seconds", where),
                    read_array(data, "gyro_mean_rad_s", (3,), where), read_array(data, "bias_deg_s", (3,), where),
                    read_array(data, "estimate_minus_rest_deg_s", (3,), where))

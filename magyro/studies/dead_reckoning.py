@@ -167,6 +167,10 @@ def dead_reckon(session: Session, calibration: Calibration) -> np.ndarray:
 def validate(session: Session, calibration=None) -> ValidationReport:
     """Dead-reckon with the raw and the calibrated gyro; errors against truth, or closure drift."""
     cal = as_calibration(calibration)
+    if calibration is not None:   # the identity is the raw gyro: it applies to any session
+        from magyro.result.applicable import check_applicable
+
+        check_applicable(cal[0], session, session.source or "the session", magnetometer=False)
     if len(session.t_gyro_s) < 2:
         raise InputError("the session has fewer than 2 gyro samples; nothing to integrate")
     attitudes = {

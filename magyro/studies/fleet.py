@@ -142,10 +142,14 @@ def device_scenario(problem: Scenario, seed: int) -> Scenario:
 
 def fleet_paths(problem: Scenario, seeds: Iterable[int], outdir) -> list[tuple[int, Path, Path]]:
     """(seed, session path, truth path) of every device: outdir/<name>-<seed:04d>.parquet and .truth.json."""
+    from magyro.io.atomic import confined
+    from magyro.text import file_name
+
     outdir = Path(outdir)
+    name = file_name(problem.name, "the problem's name")   # it names files: no path in it, checked again below
     out = []
     for seed in seeds:
-        session = outdir / f"{problem.name}-{seed:04d}.parquet"
+        session = confined(outdir, f"{name}-{seed:04d}.parquet")
         out.append((seed, session, session.with_name(session.stem + ".truth.json")))
     return out
 

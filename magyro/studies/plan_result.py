@@ -5,7 +5,6 @@ motions (`Plan`, `Comparison`), printed as a table with the instructions, and wr
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from dataclasses import dataclass
 
@@ -209,7 +208,9 @@ def _group_ratio(std: dict, other: dict | None, names: list[str]) -> str:
 
 
 def _toml_str(text: str) -> str:
-    return json.dumps(str(text), ensure_ascii=False)
+    from magyro.text import toml_string   # controls and DEL escaped: TOML forbids them raw in a string
+
+    return toml_string(text)
 
 
 def _num(v: float) -> str:

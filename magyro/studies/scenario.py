@@ -27,6 +27,8 @@ import numpy as np
 from magyro import so3
 from magyro.errors import InputError
 from magyro.io.toml_file import read_toml
+from magyro.studies.sizes import check_sizes
+from magyro.text import file_name
 
 
 # the problems shipped with magyro: installed as package data (magyro/problems), or the
@@ -229,7 +231,7 @@ def parse_problem(raw: dict, source: str = "<dict>", default_name: str = "proble
                                                         "spread"))
     where = lambda sec: f"{source} [{sec}]"  # noqa: E731
     problem = Scenario(
-        name=_string(p.get("name", default_name), where("problem"), "name"),
+        name=file_name(_string(p.get("name", default_name), where("problem"), "name"), f"{where('problem')}: name"),
         description=_string(p.get("description", ""), where("problem"), "description"),
         duration_s=_positive(p["duration_s"], where("problem"), "duration_s"),
         gyro_rate_hz=_positive(g["rate_hz"], where("gyro"), "rate_hz"),
@@ -371,6 +373,8 @@ def _parse_spread(sp: dict, where: str) -> Spread:
 
 def _check_consistency(problem: Scenario, source: str) -> None:
     m = problem.motion
+    check_sizes(problem.duration_s, {"gyro": problem.gyro_rate_hz, "magnetometer": problem.mag_rate_hz},
+                m.components, source)   # before any work: a simulation is held in memory
     if abs(problem.dip_deg) > 90.0:
         raise InputError(f"{source} [magnetometer]: dip_deg must be within [-90, 90], got {problem.dip_deg}")
     if abs(problem.mag_time_offset_s) >= problem.duration_s:
