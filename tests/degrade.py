@@ -62,6 +62,24 @@ def burst_stamps(session: Session, period_s: float = 0.25, spread_s: float = 0.0
                    t_mag_s=_restamp(session.t_mag_s, t, arrival), t_acc_s=_restamp(session.t_acc_s, t, arrival))
 
 
+def drifting_burst_stamps(session: Session, ppm: float = 450.0, wander_s: float = 0.068, period_s: float = 0.25,
+                          seed: int = 0) -> Session:
+    """Host-stamped serial bursts (`burst_stamps`) from a board whose clock drifts against the host's: the host
+    clock runs `ppm` fast, and the board's crystal warms and cools so that its samples' earliest arrivals
+    wander by `wander_s` about any single line of stamps against the sample index (issue 22: an MPU6050 +
+    HMC5883L logged over serial, +450 ppm, 68 ms)."""
+    bursty = burst_stamps(session, period_s=period_s, seed=seed)
+    t0 = float(min(session.t_gyro_s[0], session.t_mag_s[0]))
+    span = float(max(session.t_gyro_s[-1], session.t_mag_s[-1]) - t0)
+
+    def host(t):
+        return None if t is None else t + ppm * 1e-6 * (t - t0) + 0.5 * wander_s * np.sin(2 * np.pi * (t - t0) / span)
+
+    changes = dict(t_gyro_s=host(bursty.t_gyro_s), t_mag_s=host(bursty.t_mag_s), t_acc_s=host(bursty.t_acc_s))
+    return _marked(bursty, f"host-stamped bursts, clocks drifting {ppm:+g} ppm, wandering {wander_s * 1e3:g} ms",
+                   **changes)
+
+
 def wrong_time_unit(session: Session, factor: float = 1e3) -> Session:
     """Stamps that are not seconds: an Arduino logging millis() (factor 1e3), micros() (1e6), or an
     Android export of SensorEvent.timestamp in nanoseconds (1e9), written to the `t` column as is."""
