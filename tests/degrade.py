@@ -64,20 +64,30 @@ def burst_stamps(session: Session, period_s: float = 0.25, spread_s: float = 0.0
 
 def drifting_burst_stamps(session: Session, ppm: float = 450.0, wander_s: float = 0.068, period_s: float = 0.25,
                           seed: int = 0) -> Session:
-    """Host-stamped serial bursts (`burst_stamps`) from a board whose clock drifts against the host's: the host
-    clock runs `ppm` fast, and the board's crystal warms and cools so that its samples' earliest arrivals
-    wander by `wander_s` about any single line of stamps against the sample index (issue 22: an MPU6050 +
-    HMC5883L logged over serial, +450 ppm, 68 ms)."""
-    bursty = burst_stamps(session, period_s=period_s, seed=seed)
+    """Host-stamped serial bursts (`burst_stamps`) from a board whose clock drifts against the host's (issue 22:
+    an MPU6050 + HMC5883L logged over serial, +450 ppm, earliest arrivals wandering by 68 ms): the board's
+    oscillator runs `ppm` slow and warms and cools, so that its k-th sample is taken at the true (host) time
+    `drifted_times(t_k)`, `wander_s` off any straight line in k. The gyro and magnetometer are read at those
+    times (interpolated), then stamped on arrival in bursts. The true sample times are in the metadata key
+    `true_times` as 'drifted_times'; `drifted_times(session, t)` computes them."""
+    moved = {}
+    for t_name, x_name in (("t_gyro_s", "gyro_rad_s"), ("t_mag_s", "mag")):
+        t, x = getattr(session, t_name), getattr(session, x_name)
+        taken = drifted_times(session, t, ppm, wander_s)
+        moved[t_name] = taken
+        moved[x_name] = np.column_stack([np.interp(taken, t, x[:, i]) for i in range(3)])
+    board = replace(session, t_acc_s=None, acc_m_s2=None, **moved) if session.t_acc_s is not None else \
+        replace(session, **moved)
+    return _marked(burst_stamps(board, period_s=period_s, seed=seed),
+                   f"board clock drifting {ppm:+g} ppm, wandering {wander_s * 1e3:g} ms; host-stamped bursts")
+
+
+def drifted_times(session: Session, t: np.ndarray, ppm: float = 450.0, wander_s: float = 0.068) -> np.ndarray:
+    """The true times at which a board clock drifting by `ppm` and wandering by `wander_s` takes samples that it
+    counts as `t` (its own clock)."""
     t0 = float(min(session.t_gyro_s[0], session.t_mag_s[0]))
     span = float(max(session.t_gyro_s[-1], session.t_mag_s[-1]) - t0)
-
-    def host(t):
-        return None if t is None else t + ppm * 1e-6 * (t - t0) + 0.5 * wander_s * np.sin(2 * np.pi * (t - t0) / span)
-
-    changes = dict(t_gyro_s=host(bursty.t_gyro_s), t_mag_s=host(bursty.t_mag_s), t_acc_s=host(bursty.t_acc_s))
-    return _marked(bursty, f"host-stamped bursts, clocks drifting {ppm:+g} ppm, wandering {wander_s * 1e3:g} ms",
-                   **changes)
+    return t + ppm * 1e-6 * (t - t0) + 0.5 * wander_s * np.sin(2 * np.pi * (t - t0) / span)
 
 
 def wrong_time_unit(session: Session, factor: float = 1e3) -> Session:

@@ -83,14 +83,14 @@ def motion_error(motion: Turning, gyro_note: str = "", analysis=None) -> Observa
         return ObservabilityError(
             f"the device did not turn enough: at most {motion.span_deg:.0f} deg from its first attitude (gyro), so "
             "the field directions cover a small patch of the sphere and neither the magnetometer's iron nor the "
-            "gyro can be calibrated. Turn the device through large angles (90 deg or more) about all three of "
+            "gyro can be calibrated; turn the device through large angles (90 deg or more) about all three of "
             f"its axes, so that the field sweeps much of the sphere.{gyro_note}", analysis)
     if motion.single_axis:
         return ObservabilityError(
-            f"the device turned about one axis only, {motion.main_axis_words()}: it turned {motion.span_deg:.0f} deg "
-            f"but that axis never tilted more than {motion.main_axis_tilt_deg:.0f} deg, so the field sweeps one "
-            "circle, which fixes neither the magnetometer's ellipsoid nor the gyro's other axes. Turn the device "
-            f"about its other axes too (tilt it, roll it over).{gyro_note}", analysis)
+            f"the device turned about one axis only, {motion.main_axis_words()} ({motion.span_deg:.0f} deg, while that "
+            f"axis itself tilted at most {motion.main_axis_tilt_deg:.0f} deg): the field sweeps one circle, which "
+            "fixes neither the magnetometer's ellipsoid nor the gyro's other axes; turn the device about its other "
+            f"axes too (tilt it, roll it over).{gyro_note}", analysis)
     return None
 
 
@@ -126,7 +126,7 @@ def cloud_error(session: Session, cloud_kind: str, cloud_message: str, bias_rad_
             "readings do not follow: they vary no more than their own noise; check that mx, my, mz are a "
             "magnetometer and are not noise or constant")
     analysis = analysis_of()
-    gyro_note = "" if analysis.full_rank else f" Gyro parameters: {analysis.summary()}."
+    gyro_note = "" if analysis.full_rank else f" Gyro parameters: {analysis.summary().rstrip('.')}."
     error = motion_error(motion, gyro_note, analysis)
     if error is not None:
         return error

@@ -32,7 +32,9 @@ ANOMALY_NOISE = 8.0                # ... and by 8 robust stds of the norm error
 ANOMALY_MIN_S = 0.5                # a stretch this long (shorter: spikes' business)
 ANOMALY_MERGE_S = 1.0              # flagged samples closer than this are one stretch
 ANOMALY_ERROR = 0.3                # more than this share of the samples off: not homogeneous
-ANOMALY_MAX_SAMPLES = 5000         # the fit looks at most this many samples (evenly spread)
+ANOMALY_MAX_SAMPLES = 3000        # the fits look at most this many samples (evenly spread)
+ANOMALY_BLOCKS = 8                # the first fit: the best with one of these time blocks left out ...
+ANOMALY_FITS, ANOMALY_TRUSTED = 2, 0.75   # ... then refits, each on this share of the samples nearest the last        # the fit looks at most this many samples (evenly spread)
 
 
 def normalised_finding(t: np.ndarray, mag: np.ndarray) -> list:
@@ -53,7 +55,8 @@ def stuck_findings(t_g, gyro, t_m, mag) -> list:
         dead = [name for k, name in enumerate("xyz") if np.ptp(x[:, k]) == 0]
         if dead:
             out.append(Finding(
-                "stuck", sensor, f"the {sensor} {', '.join(dead)} axis reads one value in every sample "
+                "stuck", sensor, f"the {sensor} {', '.join(dead)} axis{'es read' if len(dead) > 1 else ' reads'} one "
+                "value in every sample "
                 f"({', '.join(f'{v:.6g}' for v in x[0, ['xyz'.index(n) for n in dead]])})",
                 ((float(t[0]), float(t[-1])),), "error",
                 f"a {sensor} axis that never changes measures nothing: no calibration can be made from it",
@@ -108,27 +111,33 @@ def slow_finding(t: np.ndarray, held: np.ndarray) -> list:
 
 
 def anomalies(t: np.ndarray, mag: np.ndarray, keep: np.ndarray, unit: str) -> tuple[np.ndarray, list, bool]:
-    """(samples in a field anomaly, findings, whether an ellipsoid fitted): the ellipsoid of the kept samples, refitted without the samples off
-    it; stretches of ANOMALY_MIN_S or more off by ANOMALY_MIN_SIZE and ANOMALY_NOISE robust stds. Nothing when
-    no ellipsoid fits (the gate's or `cloud_fault`'s business)."""
+    """(samples in a field anomaly, findings, whether an ellipsoid fitted): the ellipsoid of the kept samples,
+    the best with a time block left out, refitted ANOMALY_FITS times on the ANOMALY_TRUSTED nearest it (a
+    disturbance bends a plain fit); stretches
+    of ANOMALY_MIN_S or more off by ANOMALY_MIN_SIZE and ANOMALY_NOISE robust stds. Nothing when no ellipsoid
+    fits (the gate's or `cloud_fault`'s business)."""
     cut = np.zeros(len(t), dtype=bool)
     rows = np.flatnonzero(keep)
     if len(rows) < 50:
         return cut, [], True
     used = rows[:: max(1, len(rows) // ANOMALY_MAX_SAMPLES)]
-    off = np.zeros(len(t), dtype=bool)
-    for _ in range(2):   # the fit, then again without the samples off it
+    noise = reading_noise(mag[rows])
+    fit = best_of_left_out_blocks(mag[used], noise)
+    if fit is None:
+        return cut, [], False
+    for _ in range(ANOMALY_FITS):   # least trimmed squares: refit on the samples nearest the last fit
+        r = np.abs(np.linalg.norm((mag[used] - fit.h) @ fit.R.T, axis=1) - 1.0)
         try:
-            fit = ellipsoid.fit_ellipsoid(mag[used[~off[used]]])
+            fit = ellipsoid.fit_ellipsoid(mag[used[r <= np.quantile(r, ANOMALY_TRUSTED)]], noise)
         except (ellipsoid.DegenerateCloud, ellipsoid.InputError, np.linalg.LinAlgError):
-            return cut, [], False
-        r = np.linalg.norm((mag[used] - fit.h) @ fit.R.T, axis=1) - 1.0
-        sigma = 1.4826 * np.median(np.abs(r - np.median(r)))
-        limit = max(ANOMALY_MIN_SIZE, ANOMALY_NOISE * sigma)
-        if not np.any(np.abs(r) > limit):
-            return cut, [], True
-        off[:] = False
-        off[rows] = np.abs(np.linalg.norm((mag[rows] - fit.h) @ fit.R.T, axis=1) - 1.0) > limit
+            break
+    r = np.abs(np.linalg.norm((mag[used] - fit.h) @ fit.R.T, axis=1) - 1.0)
+    sigma = 1.4826 * np.median(r)
+    limit = max(ANOMALY_MIN_SIZE, ANOMALY_NOISE * sigma)
+    if not np.any(r > limit):
+        return cut, [], True
+    off = np.zeros(len(t), dtype=bool)
+    off[rows] = np.abs(np.linalg.norm((mag[rows] - fit.h) @ fit.R.T, axis=1) - 1.0) > limit
     stretches = []
     flagged = np.flatnonzero(off)
     breaks = np.flatnonzero(np.diff(t[flagged]) > ANOMALY_MERGE_S)
@@ -159,6 +168,29 @@ def anomalies(t: np.ndarray, mag: np.ndarray, keep: np.ndarray, unit: str) -> tu
         numbers={"stretches": len(stretches), "fraction": share, "largest": largest})], True
 
 
+def best_of_left_out_blocks(y: np.ndarray, noise: float):
+    """The ellipsoid fit, with each of ANOMALY_BLOCKS time blocks left out in turn, that leaves the fewest samples
+    off by half ANOMALY_MIN_SIZE (a disturbance confined to one block bends every fit but the one without it); None
+    when no ellipsoid fits the samples at all."""
+    block = np.arange(len(y)) * ANOMALY_BLOCKS // len(y)
+    fits = []
+    for b in range(-1, ANOMALY_BLOCKS):   # -1: all the samples
+        try:
+            fits.append(ellipsoid.fit_ellipsoid(y[block != b], noise))
+        except (ellipsoid.DegenerateCloud, ellipsoid.InputError, np.linalg.LinAlgError):
+            continue
+    if not fits:
+        return None
+    return min(fits, key=lambda f: float(np.mean(np.abs(np.linalg.norm((y - f.h) @ f.R.T, axis=1) - 1.0)
+                                                 > 0.5 * ANOMALY_MIN_SIZE)))
+
+
+def reading_noise(mag: np.ndarray) -> float:
+    """A rough noise std of the readings (the largest over the axes, from second differences), for telling a
+    point or a plane from a cloud."""
+    return float(np.max(1.4826 * np.median(np.abs(np.diff(mag, 2, axis=0)), axis=0) / np.sqrt(6.0)))
+
+
 def cloud_fault(session: Session, keep: np.ndarray) -> list:
     """The `field` error when the kept magnetometer samples fit no ellipsoid although the gyro says the device
     turned far about every axis (magyro.front.causes, causes 3-4); nothing when they fit or the motion is to
@@ -166,9 +198,8 @@ def cloud_fault(session: Session, keep: np.ndarray) -> list:
     mag = session.mag[keep]
     if len(mag) < 50:
         return []
-    noise = float(np.max(1.4826 * np.median(np.abs(np.diff(mag, 2, axis=0)), axis=0) / np.sqrt(6.0)))
     try:
-        ellipsoid.fit_ellipsoid(mag, noise)
+        ellipsoid.fit_ellipsoid(mag, reading_noise(mag))
         return []
     except ellipsoid.DegenerateCloud as cloud:
         kind = cloud.kind

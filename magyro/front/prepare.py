@@ -152,7 +152,7 @@ def prepare(session: Session, options: Options) -> Prepared:
     analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, mag_sample * float(np.mean(np.diag(fit.R))))
     if not analysis.full_rank and not options.force:
         motion = causes.motion_error(causes.turning(session, found.gyro_mean_rad_s), f" Gyro parameters: "
-                                     f"{analysis.summary()}.", analysis)
+                                     f"{analysis.summary().rstrip('.')}.", analysis)
         if motion is not None:   # a device that barely turned, or about one axis: said so, not "rotate about y"
             raise motion
         raise ObservabilityError(

@@ -50,6 +50,8 @@ RESTAMP_QUANTILE = 0.1            # of the per-burst earliest arrivals: buffered
 RESTAMP_WANDER_PERIODS = 1.0      # earliest arrivals wandering more than this off one line (or RESTAMP_WANDER_S):
 RESTAMP_WANDER_S = 0.005          #   drifting clocks ...
 RESTAMP_WINDOW_S = 5.0            # ... followed window by window
+RESTAMP_PASSES = 3
+RESTAMP_DRIFT_QUANTILE = 0.0      # within a window, once flattened: the lowest (a sample never arrives early)
 RESTAMP_TRUST_PERIODS = 3.0       # still wandering this much after that: no restamp can be trusted (exit 2)
 JITTER_WARN_FRACTION = 0.25       # robust std of the intervals over this share of the period
 HELD_MIN_ROWS, HELD_MIN_FRACTION, HELD_WARN_FRACTION = 10, 0.02, 0.5
@@ -121,7 +123,9 @@ def magnetometer_findings(session: Session, evidence: Evidence) -> list:
     findings = field_checks.normalised_finding(t, mag)
     findings += field_checks.stuck_findings(session.t_gyro_s, session.gyro_rad_s, t, mag)
     evidence.mag_saturated, found = field_checks.saturation(t, mag, session.mag_unit)
-    findings += found + field_checks.slow_finding(t, evidence.held["magnetometer"])
+    findings += found
+    if not any(f.kind == "stuck" and f.sensor == "magnetometer" for f in findings):
+        findings += field_checks.slow_finding(t, evidence.held["magnetometer"])
     evidence.anomaly = np.zeros(len(t), dtype=bool)
     if any(f.severity == "error" for f in findings):
         return findings
@@ -203,13 +207,16 @@ def restamp_from_index(t: np.ndarray, long: np.ndarray | None = None) -> tuple[n
     a = float(np.quantile(earliest, RESTAMP_QUANTILE))
     if np.quantile(earliest, 0.9) - a <= max(RESTAMP_WANDER_PERIODS * b, RESTAMP_WANDER_S):
         return line + a, earliest - a, b
-    offset = drifting_offset(t[starts], earliest, k[starts], k)
-    first = earliest - np.interp(k[starts], k, offset)
+    offset = np.zeros(n)
+    first = earliest
+    for _ in range(RESTAMP_PASSES):   # each pass flattens what the last left: a window's low quantile is then unbiased
+        offset += drifting_offset(t[starts], first, k[starts], k)
+        first = earliest - offset[starts]
     return line + offset, first, b
 
 
 def drifting_offset(t_start: np.ndarray, earliest: np.ndarray, k_start: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """The offset a(k) under the earliest arrivals: their RESTAMP_QUANTILE in windows of RESTAMP_WINDOW_S,
+    """The offset a(k) under the earliest arrivals: their RESTAMP_DRIFT_QUANTILE in windows of RESTAMP_WINDOW_S,
     at each window's middle index, joined by straight lines (continued beyond the first and the last)."""
     window = np.floor((t_start - t_start[0]) / RESTAMP_WINDOW_S).astype(int)
     anchors_k, anchors_a = [], []
@@ -217,7 +224,7 @@ def drifting_offset(t_start: np.ndarray, earliest: np.ndarray, k_start: np.ndarr
         inside = window == w
         if inside.sum() >= 3:
             anchors_k.append(float(np.median(k_start[inside])))
-            anchors_a.append(float(np.quantile(earliest[inside], RESTAMP_QUANTILE)))
+            anchors_a.append(float(np.quantile(earliest[inside], RESTAMP_DRIFT_QUANTILE)))
     if len(anchors_k) < 2:
         return np.full(len(k), float(np.quantile(earliest, RESTAMP_QUANTILE)))
     slope_first = (anchors_a[1] - anchors_a[0]) / (anchors_k[1] - anchors_k[0])
