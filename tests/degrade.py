@@ -153,6 +153,29 @@ def mag_spikes(session: Session, n: int = 20, size: float | None = None, seed: i
     return _marked(session, f"{n} magnetometer spikes of {size:.3g} {session.mag_unit}", mag=mag)
 
 
+def clip_mag(session: Session, share: float = 0.1, axis: int = 0) -> Session:
+    """A magnetometer at the end of its range: one axis pinned at the value `share` of its samples exceed (an
+    x-IMU at 16 G in a strong field, mx pinned in 46 % of the samples)."""
+    mag = session.mag.copy()
+    limit = float(np.quantile(mag[:, axis], 1.0 - share))
+    mag[:, axis] = np.minimum(mag[:, axis], limit)
+    return _marked(session, f"magnetometer {'xyz'[axis]} pinned in {100 * share:g} % of the samples", mag=mag)
+
+
+def magnet_pass(session: Session, t0_s: float | None = None, seconds: float = 10.0, gain: float = 0.6) -> Session:
+    """A magnet carried past the device: for `seconds` from `t0_s` (default: 60 s in) the field grows by up to
+    `gain` of itself (about the ellipsoid's centre), rising and falling quickly at the ends."""
+    from magyro.front.ellipsoid import fit_ellipsoid
+
+    t0_s = float(session.t_mag_s[0] + 60.0) if t0_s is None else t0_s
+    mag = session.mag.copy()
+    centre = fit_ellipsoid(mag).h
+    inside = (session.t_mag_s >= t0_s) & (session.t_mag_s < t0_s + seconds)
+    ramp = np.sin(np.pi * (session.t_mag_s[inside] - t0_s) / seconds) ** 0.2
+    mag[inside] = centre + (mag[inside] - centre) * (1 + gain * ramp[:, None])
+    return _marked(session, f"a magnet passing for {seconds:g} s (field +{100 * gain:.0f} %)", mag=mag)
+
+
 def held_mag(session: Session, mag_rate_hz: float = 65.0, log_rate_hz: float | None = None) -> Session:
     """A slow magnetometer logged on a faster clock by sample-and-hold: a ~65 Hz magnetometer (e.g. an
     AK8963 in its 100 Hz mode, an HMC5883L at 75 Hz) read on every tick of a 256 Hz log, each row

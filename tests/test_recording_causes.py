@@ -92,14 +92,12 @@ def test_a_time_column_in_seconds_read_as_ms_is_refused(tmp_path, phone):
 
 
 def test_a_saturated_magnetometer_is_found_cut_and_named(phone):
-    mag = phone.mag.copy()
-    limit = np.quantile(mag[:, 0], 0.9)
-    mag[:, 0] = np.minimum(mag[:, 0], limit)                 # 10 % pinned at the range
-    session = replace(phone, mag=mag)
+    session = D.clip_mag(phone, 0.1)                         # 10 % pinned at the range
+    limit = session.mag[:, 0].max()
     repaired, check = repair_recording(session)
     found = one(check, "saturation", "magnetometer")
     assert found.severity == "warning" and found.repaired and "x at" in found.message, check.table()
-    assert len(repaired.t_mag_s) == pytest.approx(0.9 * len(mag), rel=0.02)
+    assert len(repaired.t_mag_s) == pytest.approx(0.9 * len(phone.mag), rel=0.02)
     assert not np.any(repaired.mag[:, 0] >= limit)
 
 
@@ -142,21 +140,9 @@ def test_heavy_tailed_noise_is_not_cut_as_spikes(b02):
 # --------------------------------------------------------------------------- the field
 
 
-def magnet_pass(session, t0_s, seconds, gain=0.6):
-    """A magnet carried past the device: for `seconds` the field grows by `gain` of itself along its direction."""
-    from magyro.front.ellipsoid import fit_ellipsoid
-
-    mag = session.mag.copy()
-    centre = fit_ellipsoid(mag).h
-    inside = (session.t_mag_s >= t0_s) & (session.t_mag_s < t0_s + seconds)
-    ramp = np.sin(np.pi * (session.t_mag_s[inside] - t0_s) / seconds) ** 0.2
-    mag[inside] = centre + (mag[inside] - centre) * (1 + gain * ramp[:, None])
-    return replace(session, mag=mag), inside
-
-
 def test_a_magnet_passing_is_found_and_cut_like_spikes(b02):
     t0 = float(b02.t_mag_s[0] + 60.0)
-    disturbed, inside = magnet_pass(b02, t0, 10.0)
+    disturbed = D.magnet_pass(b02, t0, 10.0)
     repaired, check = repair_recording(disturbed)
     found = one(check, "field_anomaly", "magnetometer")
     assert found.severity == "warning" and found.repaired, check.table()

@@ -25,7 +25,7 @@ from magyro import so3
 from magyro.errors import InputError, MagyroError, ObservabilityError
 from magyro.session import Session, hole_steps
 
-SPAN_RATE_HZ = 100.0           # the attitude is integrated at about this rate
+SPAN_RATE_HZ = 50.0            # the attitude is integrated at about this rate (degrees matter here, not less)
 SMALL_TURN_DEG = 60.0          # a degenerate cloud within this turn is too little motion, whatever its shape
 SINGLE_AXIS_TILT_DEG = 15.0    # the main turning axis never tilted more than this: one axis only
 EVERY_AXIS_TURN_DEG = 180.0    # turned at least this much about each principal axis: "every axis"

@@ -32,6 +32,7 @@ ANOMALY_NOISE = 8.0                # ... and by 8 robust stds of the norm error
 ANOMALY_MIN_S = 0.5                # a stretch this long (shorter: spikes' business)
 ANOMALY_MERGE_S = 1.0              # flagged samples closer than this are one stretch
 ANOMALY_ERROR = 0.3                # more than this share of the samples off: not homogeneous
+ANOMALY_MIN_THICKNESS = 0.25      # the cloud's thinnest spread over its widest (0.44-0.55 on hand-turned ones)
 ANOMALY_MAX_SAMPLES = 3000        # the fits look at most this many samples (evenly spread)
 ANOMALY_BLOCKS = 8                # the first fit: the best with one of these time blocks left out ...
 ANOMALY_FITS, ANOMALY_TRUSTED = 2, 0.75   # ... then refits, each on this share of the samples nearest the last        # the fit looks at most this many samples (evenly spread)
@@ -121,6 +122,9 @@ def anomalies(t: np.ndarray, mag: np.ndarray, keep: np.ndarray, unit: str) -> tu
     if len(rows) < 50:
         return cut, [], True
     used = rows[:: max(1, len(rows) // ANOMALY_MAX_SAMPLES)]
+    spread = np.sort(np.linalg.eigvalsh(np.cov(mag[used].T)))
+    if spread[0] < ANOMALY_MIN_THICKNESS ** 2 * spread[-1]:
+        return cut, [], False   # a near-flat cloud (one circle of directions) fixes no ellipsoid to judge against
     noise = reading_noise(mag[rows])
     fit = best_of_left_out_blocks(mag[used], noise)
     if fit is None:

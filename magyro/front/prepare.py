@@ -150,11 +150,11 @@ def prepare(session: Session, options: Options) -> Prepared:
     field = ellipsoid.calibrated_field(fit.R, fit.h, session.mag)
     check_gyro_unit(session, field)
     analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, mag_sample * float(np.mean(np.diag(fit.R))))
+    motion = causes.motion_error(causes.turning(session, found.gyro_mean_rad_s), "" if analysis.full_rank else
+                                 f" Gyro parameters: {analysis.summary().rstrip('.')}.", analysis)
+    if motion is not None:   # a device that barely turned, or about one axis, even with --force: said so, not
+        raise motion         # "rotate about y" nor a linear estimate that comes out mirrored
     if not analysis.full_rank and not options.force:
-        motion = causes.motion_error(causes.turning(session, found.gyro_mean_rad_s), f" Gyro parameters: "
-                                     f"{analysis.summary().rstrip('.')}.", analysis)
-        if motion is not None:   # a device that barely turned, or about one axis: said so, not "rotate about y"
-            raise motion
         raise ObservabilityError(
             f"the motion does not excite every gyro parameter: {analysis.summary()} (--force solves anyway)", analysis
         )

@@ -99,7 +99,7 @@ def inspect(session: Session) -> tuple[RecordingCheck, Evidence]:
     evidence.spikes, found = spikes(session.t_mag_s, session.mag, session.mag_unit,
                                     held_m if held_m.mean() >= HELD_WARN_FRACTION else None)
     findings += found
-    findings += magnetometer_findings(session, evidence)
+    findings += magnetometer_findings(session, evidence, any(f.kind == "time_unit" for f in findings))
     findings += overlap_findings(stats)
     t_g = evidence.restamped.get("gyro", session.t_gyro_s)
     t_m = evidence.restamped.get("magnetometer", session.t_mag_s)
@@ -116,7 +116,7 @@ def inspect(session: Session) -> tuple[RecordingCheck, Evidence]:
                           lag_at_s=lag_at_s), evidence
 
 
-def magnetometer_findings(session: Session, evidence: Evidence) -> list:
+def magnetometer_findings(session: Session, evidence: Evidence, unit_wrong: bool = False) -> list:
     """Units, sensor faults and the field (magyro.front.field_checks), in that order; fills the evidence's
     saturated and anomalous magnetometer rows."""
     t, mag = session.t_mag_s, session.mag
@@ -124,7 +124,7 @@ def magnetometer_findings(session: Session, evidence: Evidence) -> list:
     findings += field_checks.stuck_findings(session.t_gyro_s, session.gyro_rad_s, t, mag)
     evidence.mag_saturated, found = field_checks.saturation(t, mag, session.mag_unit)
     findings += found
-    if not any(f.kind == "stuck" and f.sensor == "magnetometer" for f in findings):
+    if not any(f.kind == "stuck" and f.sensor == "magnetometer" for f in findings) and not unit_wrong:
         findings += field_checks.slow_finding(t, evidence.held["magnetometer"])
     evidence.anomaly = np.zeros(len(t), dtype=bool)
     if any(f.severity == "error" for f in findings):
@@ -157,8 +157,8 @@ def sensor_clock_and_rows(sensor: str, t: np.ndarray, x: np.ndarray):
     if bursty:
         jitter = float("nan")
         gaps = np.flatnonzero(dt > GAP_PERIODS * np.median(dt[long]))   # data lost between bursts
-        restamped, earliest, period = restamp_segments(t, long, gaps)
-        findings.append(bursts_finding(sensor, t, dt, short, long, earliest, period))
+        restamped, earliest, period, wander = restamp_segments(t, long, gaps)
+        findings.append(bursts_finding(sensor, t, dt, short, long, earliest, period, wander))
         if len(gaps):
             findings.append(gaps_finding(sensor, t, gaps, period))
     else:
@@ -186,15 +186,16 @@ def sensor_clock_and_rows(sensor: str, t: np.ndarray, x: np.ndarray):
     return stat, findings, restamped, held
 
 
-def restamp_from_index(t: np.ndarray, long: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float]:
-    """(t_k = a(k) + b k, each burst's earliest arrival after that clock, b): b the least-squares slope of the
+def restamp_from_index(t: np.ndarray, long: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(t_k = a(k) + b k, each burst's earliest arrival after that clock, b, how far the earliest arrivals wander
+    off one line (s; 0 when they do not and a is one number)): b the least-squares slope of the
     stamps against the sample index; a from a low quantile of each burst's earliest arrival (buffered samples
     arrive late, never early). When the two clocks drift (the earliest arrivals wander along the line by more
     than RESTAMP_WANDER_PERIODS periods), a(k) follows them: the low quantile of every RESTAMP_WINDOW_S of bursts,
     joined by straight lines. `long` marks the intervals that end a burst (default: > 3 mean periods)."""
     n = len(t)
     if n < 3:
-        return t.copy(), np.zeros(1), float(t[-1] - t[0]) if n == 2 else float("nan")
+        return t.copy(), np.zeros(1), float(t[-1] - t[0]) if n == 2 else float("nan"), 0.0
     k = np.arange(n, dtype=float) - (n - 1) / 2
     t_mean = float(np.mean(t))
     b = float(np.dot(k, t - t_mean) / np.dot(k, k))
@@ -205,14 +206,15 @@ def restamp_from_index(t: np.ndarray, long: np.ndarray | None = None) -> tuple[n
     starts = np.flatnonzero(np.concatenate([[True], long]))
     earliest = np.minimum.reduceat(residual, starts)
     a = float(np.quantile(earliest, RESTAMP_QUANTILE))
-    if np.quantile(earliest, 0.9) - a <= max(RESTAMP_WANDER_PERIODS * b, RESTAMP_WANDER_S):
-        return line + a, earliest - a, b
+    wander = float(np.quantile(earliest, 0.9) - a)
+    if wander <= max(RESTAMP_WANDER_PERIODS * b, RESTAMP_WANDER_S):
+        return line + a, earliest - a, b, 0.0
     offset = np.zeros(n)
     first = earliest
     for _ in range(RESTAMP_PASSES):   # each pass flattens what the last left: a window's low quantile is then unbiased
         offset += drifting_offset(t[starts], first, k[starts], k)
         first = earliest - offset[starts]
-    return line + offset, first, b
+    return line + offset, first, b, wander
 
 
 def drifting_offset(t_start: np.ndarray, earliest: np.ndarray, k_start: np.ndarray, k: np.ndarray) -> np.ndarray:
@@ -236,18 +238,19 @@ def drifting_offset(t_start: np.ndarray, earliest: np.ndarray, k_start: np.ndarr
 
 def restamp_segments(t: np.ndarray, long: np.ndarray, gaps: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """`restamp_from_index` on each stretch between gaps (the index says nothing across lost data):
-    (times, earliest arrivals, the period of the longest stretch)."""
+    (times, earliest arrivals, the period of the longest stretch, the largest wander off one line)."""
     bounds = np.concatenate([[0], gaps + 1, [len(t)]])
-    times, earliest, periods = [], [], []
+    times, earliest, periods, wander = [], [], [], 0.0
     for a, b in zip(bounds[:-1], bounds[1:]):
-        fitted, first, period = restamp_from_index(t[a:b], long[a:b - 1])
+        fitted, first, period, off_line = restamp_from_index(t[a:b], long[a:b - 1])
         times.append(fitted)
         earliest.append(first)
         periods.append((b - a, period))
-    return np.concatenate(times), np.concatenate(earliest), float(max(periods)[1])
+        wander = max(wander, off_line)
+    return np.concatenate(times), np.concatenate(earliest), float(max(periods)[1]), wander
 
 
-def bursts_finding(sensor, t, dt, short, long, earliest, period) -> Finding:
+def bursts_finding(sensor, t, dt, short, long, earliest, period, wander=0.0) -> Finding:
     wait = float(np.median(dt[long]))
     drift = float(np.quantile(earliest, 0.9) - np.quantile(earliest, RESTAMP_QUANTILE))
     lost = drift > RESTAMP_TRUST_PERIODS * period
@@ -257,6 +260,9 @@ def bursts_finding(sensor, t, dt, short, long, earliest, period) -> Finding:
         f"{BURST_SHORT_PERIODS:g} period (median {np.median(dt[short]) * 1e3:.2f} ms against a mean period of "
         f"{period * 1e3:.2f} ms), then {int(long.sum())} waits of {wait * 1e3:.0f} ms: these are arrival times "
         f"of buffered data, not sample times" + (
+            f"; their earliest arrivals wander by {wander * 1e3:.0f} ms off one line (the sensor's and the host's "
+            f"clocks drift), so the restamp follows them {RESTAMP_WINDOW_S:g} s at a time" if wander and not lost
+            else "") + (
             f"; even followed window by window ({RESTAMP_WINDOW_S:g} s), the earliest arrival per burst wanders by "
             f"{drift * 1e3:.0f} ms: the {sensor}'s clock cannot be rebuilt from its sample index (samples missing, "
             "or a clock that jumps), so no restamp can be trusted" if lost else ""),
@@ -269,7 +275,7 @@ def bursts_finding(sensor, t, dt, short, long, earliest, period) -> Finding:
          "earliest arrivals, following drifting clocks); Repairs(restamp_bursts=False) keeps the stamps. "
          "Better: stamp on the sensor side"),
         numbers={"short_fraction": float(short.mean()), "wait_s": wait, "period_s": float(period),
-                 "earliest_arrival_spread_s": drift})
+                 "earliest_arrival_spread_s": drift, "wander_off_one_line_s": wander})
 
 
 def gaps_of(t: np.ndarray, period: float, minimum_periods: float = GAP_PERIODS) -> list:
