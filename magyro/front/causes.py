@@ -28,7 +28,8 @@ from magyro.session import Session, hole_steps
 SPAN_RATE_HZ = 50.0            # the attitude is integrated at about this rate (degrees matter here, not less)
 SMALL_TURN_DEG = 60.0          # a degenerate cloud within this turn is too little motion, whatever its shape
 SINGLE_AXIS_TILT_DEG = 15.0    # the main turning axis never tilted more than this: one axis only
-EVERY_AXIS_TURN_DEG = 180.0    # turned at least this much about each principal axis: "every axis"
+EVERY_AXIS_TURN_DEG = 180.0    # turned at least this much about each principal axis: "every axis" ...
+FAR_SPAN_DEG = 90.0            # ... and this far from the first attitude
 
 
 @dataclass(frozen=True)
@@ -46,7 +47,8 @@ class Turning:
 
     @property
     def every_axis(self) -> bool:
-        return min(self.turn_deg) >= EVERY_AXIS_TURN_DEG and self.main_axis_tilt_deg >= 3 * SINGLE_AXIS_TILT_DEG
+        return (min(self.turn_deg) >= EVERY_AXIS_TURN_DEG and self.main_axis_tilt_deg >= 3 * SINGLE_AXIS_TILT_DEG
+                and self.span_deg >= FAR_SPAN_DEG)   # shaking adds up turns without going anywhere
 
     def main_axis_words(self) -> str:
         """'its z axis' or 'an axis between its x and z axes (0.71, 0.00, 0.71)'."""
@@ -81,7 +83,7 @@ def motion_error(motion: Turning, gyro_note: str = "", analysis=None) -> Observa
     """Causes 1 and 2 (exit 3), or None when the device turned far about more than one axis."""
     if motion.span_deg < SMALL_TURN_DEG:
         return ObservabilityError(
-            f"the device did not turn enough: at most {motion.span_deg:.0f} deg from its first attitude (gyro), so "
+            f"the device turned too little: at most {motion.span_deg:.0f} deg from its first attitude (gyro), so "
             "the field directions cover a small patch of the sphere and neither the magnetometer's iron nor the "
             "gyro can be calibrated; turn the device through large angles (90 deg or more) about all three of "
             f"its axes, so that the field sweeps much of the sphere.{gyro_note}", analysis)
@@ -104,8 +106,8 @@ def magnetometer_fault(motion: Turning, cloud_kind: str) -> InputError | None:
     if cloud_kind in ("static", "planar"):
         what = "vary no more than their own noise" if cloud_kind == "static" else "lie in one plane"
         return InputError(
-            f"{turned}, but the magnetometer readings {what}: the magnetometer does not follow the turning (an axis "
-            "dead or constant, or columns that are not a magnetometer's); check mx, my, mz")
+            f"{turned}, but the magnetometer readings {what}: they do not follow the turning (an axis dead or "
+            "constant, or columns that are not a magnetometer's); check mx, my, mz")
     return InputError(
         f"{turned}, but the magnetometer readings lie on no ellipsoid (the fitted surface is a hyperboloid): the "
         "field is not the same everywhere along the path (iron or a magnet near the device moved, or the device "
