@@ -68,6 +68,12 @@ def test_restamp_follows_clocks_that_drift_and_the_bias_comes_out_within_2_std(p
     assert np.all(np.abs(z) < 2.0), z
 
 
+def test_the_check_of_drifting_bursts_prints_no_warning_and_no_nan(tmp_path, phone):
+    path = written(D.drifting_burst_stamps(phone), tmp_path, "drifting")
+    result = run_clean("check", path)                     # was: a numpy RuntimeWarning and "jitter nan"
+    assert result.returncode == 0 and "follows them" in result.stdout, result.stdout
+
+
 def test_bursts_that_no_restamp_can_follow_are_refused_naming_the_clock(phone):
     bursty = D.burst_stamps(phone)
     t = bursty.t_gyro_s.copy()
@@ -151,6 +157,18 @@ def test_a_magnet_passing_is_found_and_cut_like_spikes(b02):
     left = (repaired.t_mag_s > t0 + 1.0) & (repaired.t_mag_s < t0 + 9.0)
     assert not left.any()
     assert not check_recording(b02).find("field_anomaly")          # the clean trial has none
+
+
+def test_a_field_whose_strength_wanders_far_is_not_homogeneous_not_a_coverage_problem(tmp_path, b02):
+    """A foot-mounted x-IMU whose field ranged 0.12-1.13 G was blamed on sphere coverage."""
+    from magyro.front.ellipsoid import fit_ellipsoid
+
+    h = fit_ellipsoid(b02.mag).h
+    phase = (b02.t_mag_s - b02.t_mag_s[0]) / (b02.t_mag_s[-1] - b02.t_mag_s[0])
+    strength = 0.12 + 1.01 * 0.5 * (1 + np.sin(2 * np.pi * 7 * phase))
+    path = written(replace(b02, mag=h + (b02.mag - h) * strength[:, None]), tmp_path, "wandering-field")
+    message = refusal(run_clean("observe", path), 2)
+    assert "not the same everywhere" in message and "sphere" not in message, message
 
 
 # --------------------------------------------------------------------------- motion
