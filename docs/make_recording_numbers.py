@@ -398,7 +398,8 @@ def check_rules_block() -> str:
         "- **no ellipsoid** (the gate, `magyro.front.causes`): judged against the gyro, in this order: the "
         f"device turned less than {g(causes.SMALL_TURN_DEG)} deg, or about one axis only (that axis tilted "
         f"less than {g(causes.SINGLE_AXIS_TILT_DEG)} deg): exit 3, naming it; it turned "
-        f"{g(causes.EVERY_AXIS_TURN_DEG)} deg or more about every axis: the magnetometer does not follow or "
+        f"{g(causes.EVERY_AXIS_TURN_DEG)} deg or more about every axis, and {g(causes.FAR_SPAN_DEG)} deg from "
+        "its first attitude: the magnetometer does not follow or "
         "the field is not homogeneous (exit 2); else too little of the sphere (exit 3).",
         f"- **clocks**: the solve searches a magnetometer lag within +/-{g(1e3 * sig.SOLVE_LAG_SEARCH_S)} ms; a "
         f"larger lag, or one that changes by more than {g(1e3 * sig.DRIFT_MIN_S)} ms from start to end, is "
