@@ -91,8 +91,8 @@ def motion_error(motion: Turning, gyro_note: str = "", analysis=None) -> Observa
         return ObservabilityError(
             f"the device turned about one axis only, {motion.main_axis_words()} ({motion.span_deg:.0f} deg, while that "
             f"axis itself tilted at most {motion.main_axis_tilt_deg:.0f} deg): the field sweeps one circle, which "
-            "fixes neither the magnetometer's ellipsoid nor the gyro's other axes; turn the device about its other "
-            f"axes too (tilt it, roll it over).{gyro_note}", analysis)
+            "fixes neither the magnetometer's ellipsoid nor the gyro's other axes; turn the device about all three of "
+            f"its axes (tilt it, roll it over), not only about this one.{gyro_note}", analysis)
     return None
 
 
