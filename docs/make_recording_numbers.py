@@ -54,9 +54,12 @@ MOTIONS = (  # label, theorem's rank (docs/observability.md), motion changes (No
 )
 CHECK_CASES = (  # the degradations of tests/degrade.py shown, by name and arguments, applied to broad-02
     ("burst_stamps", ()),
+    ("drifting_burst_stamps", ()),
     ("clip_gyro", (250.0,)),
     ("hole", (80.0, 30.0)),
     ("mag_spikes", ()),
+    ("clip_mag", (0.1,)),
+    ("magnet_pass", ()),
     ("held_mag", ()),
     ("mag_time_offset", (0.3,)),
     ("mag_clock_drift", (20000.0,)),
@@ -348,6 +351,8 @@ def broad_block(text: str | None = None) -> str:
 
 
 def check_rules_block() -> str:
+    from magyro.front import causes
+    from magyro.front import field_checks as fc
     from magyro.front import recording as rec
     from magyro.front import signals as sig
     from magyro.front.findings import GAP_PERIODS
@@ -362,7 +367,11 @@ def check_rules_block() -> str:
         "rad/s, or the reverse, is an error (exit 2).",
         f"- **bursts**: at least {100 * rec.BURST_MIN_SHORT_FRACTION:g} % of the intervals shorter than "
         f"{g(rec.BURST_SHORT_PERIODS)} period, and at least {rec.BURST_MIN_LONG} waits longer than "
-        f"{g(rec.BURST_LONG_PERIODS)} periods. magyro restamps the sensor from its sample index.",
+        f"{g(rec.BURST_LONG_PERIODS)} periods. magyro restamps the sensor from its sample index; when the "
+        f"earliest arrival of each burst wanders more than {g(rec.RESTAMP_WANDER_PERIODS)} period (or "
+        f"{g(1e3 * rec.RESTAMP_WANDER_S)} ms) off one line, the two clocks drift and the restamp follows them, "
+        f"{g(rec.RESTAMP_WINDOW_S)} s at a time; if they still wander by {g(rec.RESTAMP_TRUST_PERIODS)} periods, "
+        "no restamp can be trusted (error, exit 2, naming the sensor's clock).",
         f"- **gaps**: an interval longer than {g(GAP_PERIODS)} periods. magyro never integrates the gyro across "
         "one.",
         f"- **held samples**: at least {rec.HELD_MIN_ROWS} rows, and {100 * rec.HELD_MIN_FRACTION:g} % of them, "
@@ -373,7 +382,25 @@ def check_rules_block() -> str:
         f"{100 * sig.SAT_STEEP_FRACTION:g} % of the range, or held for {sig.SAT_LONG_RUN} samples. magyro cuts "
         "them out.",
         f"- **spikes**: a magnetometer sample off the median of its four neighbours by {g(sig.SPIKE_SPREAD)} x "
-        f"({g(sig.SPIKE_NOISE)} noise stds + the neighbours' spread). magyro drops it.",
+        f"({g(sig.SPIKE_NOISE)} noise stds + the neighbours' spread), the fresh readings only when most rows "
+        f"are held. magyro drops it, unless more than {100 * sig.SPIKE_MAX_FRACTION:g} % of the samples (and more "
+        f"than {sig.SPIKE_ALWAYS}) look so: that is the noise's shape, reported, nothing dropped.",
+        f"- **magnetometer units and faults**: readings of length 1 everywhere (normalised by the logger) and an "
+        "axis that never changes (stuck) are errors (exit 2); an axis at exactly its extreme in "
+        f"{100 * fc.MAG_SAT_MIN_FRACTION:g} % of the samples or more, on {fc.MAG_SAT_MIN_RUNS} runs, "
+        f"{g(fc.MAG_SAT_DOMINANCE)}x as often as any value inside the range, is saturated: cut, and an error "
+        f"beyond {100 * fc.MAG_SATURATED_ERROR:g} % of the samples; new values slower than {g(fc.SLOW_MAG_HZ)} Hz "
+        "are a warning.",
+        f"- **field anomalies**: stretches of {g(fc.ANOMALY_MIN_S)} s or more where the field's magnitude is off "
+        f"the ellipsoid of the rest by {100 * fc.ANOMALY_MIN_SIZE:g} % and {g(fc.ANOMALY_NOISE)} robust stds (a "
+        "magnet passing by) are cut like spikes; the solve does not cross them. Over "
+        f"{100 * fc.ANOMALY_ERROR:g} % of the samples, the field is not homogeneous (error, exit 2).",
+        "- **no ellipsoid** (the gate, `magyro.front.causes`): judged against the gyro, in this order: the "
+        f"device turned less than {g(causes.SMALL_TURN_DEG)} deg, or about one axis only (that axis tilted "
+        f"less than {g(causes.SINGLE_AXIS_TILT_DEG)} deg): exit 3, naming it; it turned "
+        f"{g(causes.EVERY_AXIS_TURN_DEG)} deg or more about every axis, and {g(causes.FAR_SPAN_DEG)} deg from "
+        "its first attitude: the magnetometer does not follow or "
+        "the field is not homogeneous (exit 2); else too little of the sphere (exit 3).",
         f"- **clocks**: the solve searches a magnetometer lag within +/-{g(1e3 * sig.SOLVE_LAG_SEARCH_S)} ms; a "
         f"larger lag, or one that changes by more than {g(1e3 * sig.DRIFT_MIN_S)} ms from start to end, is "
         "flagged and the magnetometer's times are shifted.",

@@ -62,6 +62,34 @@ def burst_stamps(session: Session, period_s: float = 0.25, spread_s: float = 0.0
                    t_mag_s=_restamp(session.t_mag_s, t, arrival), t_acc_s=_restamp(session.t_acc_s, t, arrival))
 
 
+def drifting_burst_stamps(session: Session, ppm: float = 450.0, wander_s: float = 0.068, period_s: float = 0.25,
+                          seed: int = 0) -> Session:
+    """Host-stamped serial bursts (`burst_stamps`) from a board whose clock drifts against the host's (issue 22:
+    an MPU6050 + HMC5883L logged over serial, +450 ppm, earliest arrivals wandering by 68 ms): the board's
+    oscillator runs `ppm` slow and warms and cools, so that its k-th sample is taken at the true (host) time
+    `drifted_times(t_k)`, `wander_s` off any straight line in k. The gyro and magnetometer are read at those
+    times (interpolated), then stamped on arrival in bursts. The true sample times are in the metadata key
+    `true_times` as 'drifted_times'; `drifted_times(session, t)` computes them."""
+    moved = {}
+    for t_name, x_name in (("t_gyro_s", "gyro_rad_s"), ("t_mag_s", "mag")):
+        t, x = getattr(session, t_name), getattr(session, x_name)
+        taken = drifted_times(session, t, ppm, wander_s)
+        moved[t_name] = taken
+        moved[x_name] = np.column_stack([np.interp(taken, t, x[:, i]) for i in range(3)])
+    board = replace(session, t_acc_s=None, acc_m_s2=None, **moved) if session.t_acc_s is not None else \
+        replace(session, **moved)
+    return _marked(burst_stamps(board, period_s=period_s, seed=seed),
+                   f"board clock drifting {ppm:+g} ppm, wandering {wander_s * 1e3:g} ms; host-stamped bursts")
+
+
+def drifted_times(session: Session, t: np.ndarray, ppm: float = 450.0, wander_s: float = 0.068) -> np.ndarray:
+    """The true times at which a board clock drifting by `ppm` and wandering by `wander_s` takes samples that it
+    counts as `t` (its own clock)."""
+    t0 = float(min(session.t_gyro_s[0], session.t_mag_s[0]))
+    span = float(max(session.t_gyro_s[-1], session.t_mag_s[-1]) - t0)
+    return t + ppm * 1e-6 * (t - t0) + 0.5 * wander_s * np.sin(2 * np.pi * (t - t0) / span)
+
+
 def wrong_time_unit(session: Session, factor: float = 1e3) -> Session:
     """Stamps that are not seconds: an Arduino logging millis() (factor 1e3), micros() (1e6), or an
     Android export of SensorEvent.timestamp in nanoseconds (1e9), written to the `t` column as is."""
@@ -123,6 +151,29 @@ def mag_spikes(session: Session, n: int = 20, size: float | None = None, seed: i
     rows = np.array([rng.integers(a + 2, b - 2) for a, b in zip(edges[:-1], edges[1:])])
     mag[rows, rng.integers(0, 3, n)] += size * rng.choice([-1.0, 1.0], n)
     return _marked(session, f"{n} magnetometer spikes of {size:.3g} {session.mag_unit}", mag=mag)
+
+
+def clip_mag(session: Session, share: float = 0.1, axis: int = 0) -> Session:
+    """A magnetometer at the end of its range: one axis pinned at the value `share` of its samples exceed (an
+    x-IMU at 16 G in a strong field, mx pinned in 46 % of the samples)."""
+    mag = session.mag.copy()
+    limit = float(np.quantile(mag[:, axis], 1.0 - share))
+    mag[:, axis] = np.minimum(mag[:, axis], limit)
+    return _marked(session, f"magnetometer {'xyz'[axis]} pinned in {100 * share:g} % of the samples", mag=mag)
+
+
+def magnet_pass(session: Session, t0_s: float | None = None, seconds: float = 10.0, gain: float = 0.6) -> Session:
+    """A magnet carried past the device: for `seconds` from `t0_s` (default: 60 s in) the field grows by up to
+    `gain` of itself (about the ellipsoid's centre), rising and falling quickly at the ends."""
+    from magyro.front.ellipsoid import fit_ellipsoid
+
+    t0_s = float(session.t_mag_s[0] + 60.0) if t0_s is None else t0_s
+    mag = session.mag.copy()
+    centre = fit_ellipsoid(mag).h
+    inside = (session.t_mag_s >= t0_s) & (session.t_mag_s < t0_s + seconds)
+    ramp = np.sin(np.pi * (session.t_mag_s[inside] - t0_s) / seconds) ** 0.2
+    mag[inside] = centre + (mag[inside] - centre) * (1 + gain * ramp[:, None])
+    return _marked(session, f"a magnet passing for {seconds:g} s (field +{100 * gain:.0f} %)", mag=mag)
 
 
 def held_mag(session: Session, mag_rate_hz: float = 65.0, log_rate_hz: float | None = None) -> Session:

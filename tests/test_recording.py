@@ -346,7 +346,7 @@ def test_the_report_is_plain_json_with_its_schema(b02):
 def test_check_and_repair_take_a_small_share_of_a_solve(b02):
     repair_recording(b02)
     best = min(_timed(lambda: repair_recording(b02)) for _ in range(5))
-    assert best < 0.1, best      # a solve of this trial takes ~1.5 s; typically ~20 ms
+    assert best < 0.25, best     # a solve of this trial takes 2.5-25 s (idle to loaded); typically 40-120 ms
 
 
 def _timed(job) -> float:

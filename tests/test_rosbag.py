@@ -26,6 +26,7 @@ from magyro.io import convert_rosbag, import_rosbag, load_session  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 TRIAL = REPO / "data" / "broad-02.parquet"
 IMU, MAG = "sensor_msgs/msg/Imu", "sensor_msgs/msg/MagneticField"
+OLD_MAG = "geometry_msgs/msg/Vector3Stamped"   # older drivers' magnetometer (gauss, or a unit vector)
 PART_S = 40.0  # every sample of the trial's first 40 s in the small bags
 
 
@@ -39,8 +40,9 @@ def stamps_ns(t_s: np.ndarray) -> np.ndarray:
 
 
 def write_bag(path: Path, session, n: int | None = None, ros: int = 2, imu_topics=("/imu",), mag_topics=("/mag",),
-              stamp_ns=None, acc_absent: bool = False) -> Path:
-    """A bag with the session's first n samples on every topic given (imu_topics may be empty)."""
+              stamp_ns=None, acc_absent: bool = False, mag_as: str = "tesla") -> Path:
+    """A bag with the session's first n samples on every topic given (imu_topics may be empty); the magnetometer
+    as MagneticField in tesla, or (`mag_as` "gauss" or "unit") as an older driver's Vector3Stamped."""
     n = len(session.t_gyro_s) if n is None else n
     assert np.array_equal(session.t_gyro_s, session.t_mag_s) and np.array_equal(session.t_gyro_s, session.t_acc_s)
     stamps = stamps_ns(session.t_gyro_s[:n]) if stamp_ns is None else np.asarray(stamp_ns, dtype=np.int64)
@@ -63,7 +65,8 @@ def write_bag(path: Path, session, n: int | None = None, ros: int = 2, imu_topic
     writer = Writer1(path) if ros == 1 else Writer2(path, version=9)
     with writer:
         imu_conns = [writer.add_connection(t, IMU, typestore=store) for t in imu_topics]
-        mag_conns = [writer.add_connection(t, MAG, typestore=store) for t in mag_topics]
+        mag_type = MAG if mag_as == "tesla" else OLD_MAG
+        mag_conns = [writer.add_connection(t, mag_type, typestore=store) for t in mag_topics]
         for k in range(n):
             ns = int(stamps[k])
             received = 10**18 + 1000 * k  # the bag's clock: not the header stamps
@@ -76,9 +79,13 @@ def write_bag(path: Path, session, n: int | None = None, ros: int = 2, imu_topic
                 for c in imu_conns:
                     writer.write(c, received, data)
             if mag_conns:
-                mag = MagneticField(header=header(k, ns), magnetic_field=vector(session.mag[k] / 1e6),
-                                    magnetic_field_covariance=zero)
-                data = serialize(mag, MAG)
+                if mag_as == "tesla":
+                    mag = MagneticField(header=header(k, ns), magnetic_field=vector(session.mag[k] / 1e6),
+                                        magnetic_field_covariance=zero)
+                else:
+                    m = session.mag[k] / (100.0 if mag_as == "gauss" else np.linalg.norm(session.mag[k]))
+                    mag = T[OLD_MAG](header=header(k, ns), vector=vector(m))
+                data = serialize(mag, mag_type)
                 for c in mag_conns:
                     writer.write(c, received + 1, data)
     return path
@@ -248,3 +255,14 @@ def test_cli_import_rosbag(run_magyro, assert_plain_failure, bags, trial, tmp_pa
                                               "--mag-topic", "/nope"), 2)
     assert "/nope does not exist" in message
     assert not (tmp_path / "f.parquet").exists() and not (tmp_path / "g.parquet").exists()
+
+
+@pytest.mark.parametrize("mag_as, unit", [("gauss", "uT"), ("unit", "normalised")])
+def test_an_older_drivers_vector3stamped_magnetometer_is_read(trial, tmp_path, mag_as, unit):
+    """phidgets_imu and razor_imu_9dof published geometry_msgs/Vector3Stamped before MagneticField: gauss (imported
+    in uT), or unit vectors (kept, unit "normalised", which the recording check then refuses by name)."""
+    n = 500
+    s = import_rosbag(write_bag(tmp_path / "old.bag", trial, n, ros=1, mag_as=mag_as))
+    assert s.mag_unit == unit and s.metadata["rosbag_mag_type"] == OLD_MAG
+    expected = trial.mag[:n] if mag_as == "gauss" else trial.mag[:n] / np.linalg.norm(trial.mag[:n], axis=1)[:, None]
+    np.testing.assert_allclose(s.mag, expected, rtol=1e-12, atol=1e-12)

@@ -94,7 +94,7 @@ def import_rosbag_command(
     bag: Path = typer.Argument(..., help="A ROS1 bag file (.bag) or a ROS2 bag folder."),
     output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv)."),
     imu_topic: Optional[str] = typer.Option(None, "--imu-topic", help="The sensor_msgs/msg/Imu topic (default: the bag's only one)."),
-    mag_topic: Optional[str] = typer.Option(None, "--mag-topic", help="The sensor_msgs/msg/MagneticField topic (default: the bag's only one)."),
+    mag_topic: Optional[str] = typer.Option(None, "--mag-topic", help="The magnetometer topic: sensor_msgs/msg/MagneticField, or geometry_msgs/msg/Vector3Stamped of older drivers (default: the bag's only one)."),
 ):
     """A ROS bag: gyro (rad/s) and accelerometer from Imu, magnetometer (tesla to uT), times from the header stamps."""
     from magyro.io.rosbag import convert_rosbag
@@ -103,7 +103,7 @@ def import_rosbag_command(
         s = convert_rosbag(bag, output, imu_topic=imu_topic, mag_topic=mag_topic)
         m = s.metadata
         typer.echo(f"session written to {output}: {len(s.t_gyro_s)} gyro samples ({s.gyro_rate_hz:.1f} Hz) from "
-                   f"{m['rosbag_imu_topic']}, {len(s.t_mag_s)} magnetometer samples ({s.mag_rate_hz:.1f} Hz, uT) "
+                   f"{m['rosbag_imu_topic']}, {len(s.t_mag_s)} magnetometer samples ({s.mag_rate_hz:.1f} Hz, {s.mag_unit}) "
                    f"from {m['rosbag_mag_topic']}, {s.duration_s:.1f} s ({m['rosbag_ros_version']} bag, header stamps)")
 
     run_guarded(action)

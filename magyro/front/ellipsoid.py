@@ -32,6 +32,11 @@ class DegenerateCloud(Exception):
         self.kind = kind  # "static" | "planar" | "sparse"
 
 
+class NotAnEllipsoid(InputError):
+    """The best quadric through the samples is a hyperboloid: the field or the iron changed along the path, or
+    the cloud covers too little of the sphere to tell (magyro.front.causes decides which)."""
+
+
 MIN_UNIQUENESS = 2.0
 STATIC_SPREAD_IN_NOISE_STD = 10.0
 PLANAR_THICKNESS_IN_NOISE_STD = 5.0
@@ -83,7 +88,8 @@ def fit_ellipsoid(y_mag: np.ndarray, noise_std: float = 0.0) -> EllipsoidFit:
     u = (y - centre) / scale
     # singular values and vectors of the (N x 10) design from its 10 x 10 normal matrix: the
     # data are centred and scaled, so squaring the condition costs nothing that matters here
-    lam, V = np.linalg.eigh(quadric_design_matrix(u).T @ quadric_design_matrix(u))
+    D = quadric_design_matrix(u)
+    lam, V = np.linalg.eigh(D.T @ D)
     lam = np.maximum(lam, 0.0)
     uniqueness = float(np.sqrt(lam[1] / max(lam[0], 1e-300)))
     A, b, c = quadric_from_vector(V[:, 0])
@@ -91,7 +97,7 @@ def fit_ellipsoid(y_mag: np.ndarray, noise_std: float = 0.0) -> EllipsoidFit:
         R_u, h_u = ellipsoid_shape(A, b, c)
     except InputError:
         # the unconstrained quadric is not an ellipsoid: the one constrained to be one may still fit well
-        R_u, h_u = ellipsoid_shape(*quadric_from_vector(ellipsoid_specific_vector(quadric_design_matrix(u))))
+        R_u, h_u = ellipsoid_shape(*quadric_from_vector(ellipsoid_specific_vector(D)))
         r = np.linalg.norm((u - h_u) @ R_u.T, axis=1) - 1.0
         if np.sqrt(np.mean(r**2)) > MAX_CONSTRAINED_NORM_ERROR:
             if uniqueness < MIN_UNIQUENESS:  # a family of quadrics fits: the coverage, not the data, is at fault
@@ -142,7 +148,7 @@ def ellipsoid_shape(A: np.ndarray, b: np.ndarray, c: float) -> tuple[np.ndarray,
     shape = A / k
     eig = np.linalg.eigvalsh(shape)
     if np.any(eig <= 0):
-        raise InputError(
+        raise NotAnEllipsoid(
             "the magnetometer samples do not lie on an ellipsoid (the fitted surface is a hyperboloid): "
             "check that mx, my, mz are the magnetometer and that no iron or magnet moved during the recording"
         )

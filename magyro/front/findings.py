@@ -14,8 +14,8 @@ SCHEMA = "magyro.recording/1"
 SENSORS = ("gyro", "magnetometer")
 SEVERITIES = ("info", "warning", "error")
 # every kind of finding the check makes (magyro.front: recording, signals, repairs); acceptance limits name them
-KINDS = ("bursts", "clock_drift", "gaps", "gyro_holes", "gyro_unit", "held", "jitter", "overlap", "samples",
-         "saturation", "spikes", "time_offset", "time_unit")
+KINDS = ("bursts", "clock_drift", "field", "field_anomaly", "gaps", "gyro_holes", "gyro_unit", "held", "jitter",
+         "normalised", "overlap", "samples", "saturation", "slow", "spikes", "stuck", "time_offset", "time_unit")
 GAP_PERIODS = HOLE_FACTOR         # an interval longer than this many periods is a gap: the solve's hole
 
 
@@ -138,8 +138,9 @@ class RecordingCheck:
                  f"{'sensor':<13}{'samples':>8}{'rate Hz':>9}{'distinct Hz':>12}{'jitter ms':>10}{'span s':>20}"
                  f"{'held %':>8}{'gaps':>6}  clock"]
         for s in self.sensors.values():
+            jitter = f"{s.jitter_s * 1e3:.3f}" if np.isfinite(s.jitter_s) else "bursts"
             lines.append(f"{s.sensor:<13}{s.samples:>8}{s.rate_hz:>9.2f}{s.distinct_rate_hz:>12.2f}"
-                         f"{s.jitter_s * 1e3:>10.3f}{f'{s.start_s:.3f}-{s.end_s:.3f}':>20}"
+                         f"{jitter:>10}{f'{s.start_s:.3f}-{s.end_s:.3f}':>20}"
                          f"{100 * s.held_fraction:>8.1f}{s.gaps:>6}  {'bursty' if s.bursty else 'regular'}")
         if len(self.lag_s) == 2:
             lines.append(f"magnetometer {lag_words(self.lag_s[0])} at the start, {lag_words(self.lag_s[1])} at the end")

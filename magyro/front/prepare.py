@@ -16,16 +16,13 @@ import numpy as np
 
 from magyro import so3
 from magyro.errors import InputError, MagyroError, ObservabilityError
-from magyro.front import ellipsoid, rests
+from magyro.front import causes, ellipsoid, rests
 from magyro.front.noise import NoiseLevels, noise_levels
 from magyro.observability.gate import ObservabilityAnalysis, analyse
 from magyro.options import Options
 from magyro.session import Session, hole_steps
 
 MIN_MOVING_SAMPLES = 100
-MAG_MUST_FOLLOW_DEG = 45.0     # turned this far from its start, the device moves the field far beyond the noise
-SMALL_TURN_DEG = 60.0          # a degenerate cloud within this turn is too little motion, whatever its shape
-SPAN_RATE_HZ = 100.0           # the attitude span is integrated at about this rate
 MIN_RATE_RATIO = 0.1
 
 
@@ -50,42 +47,20 @@ def attitude_span_deg(session: Session, bias_rad_s: np.ndarray | None = None) ->
     Unlike the path integral of |w| dt, shaking back and forth does not add up.
     Holes in the record start again from the attitude before them.
     """
-    step = max(1, int(session.gyro_rate_hz // SPAN_RATE_HZ))
-    t, w = session.t_gyro_s[::step], session.gyro_rad_s[::step]
-    if bias_rad_s is not None:
-        w = w - bias_rad_s
-    w = np.where(np.append(hole_steps(t), False)[:, None], 0.0, w)   # nothing turns across a hole
-    C = so3.integrate_body_rates(t, w)
-    return float(np.rad2deg(np.max(np.linalg.norm(so3.log_so3(C), axis=1))))
+    return causes.turning(session, bias_rad_s).span_deg
 
 
-def degenerate_cloud_error(session: Session, cloud: ellipsoid.DegenerateCloud, found: rests.Rests,
-                           gyro_std: float, mag_sample: float) -> MagyroError:
-    """What a magnetometer cloud that fits no ellipsoid means, judged against how far the gyro says the device turned.
-
-    Readings that stay within their noise while the device turned far are no
-    magnetometer (exit 2); a cloud of any shape from a device that barely turned
-    is too little motion (exit 3), whatever its shape suggests.
-    """
-    span_deg = attitude_span_deg(session, found.gyro_mean_rad_s)
-    if cloud.kind == "static" and span_deg > MAG_MUST_FOLLOW_DEG:
-        return InputError(
-            f"the gyro says the device turned {span_deg:.0f} deg from its first attitude but the magnetometer readings "
-            "do not follow: they vary no more than their own noise; check that mx, my, mz are a magnetometer and "
-            "are not noise or constant"
-        )
-    field = ellipsoid.surrogate_field_directions(session.mag)
-    analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std,
+def cloud_error(session: Session, kind: str, message: str, found: rests.Rests, gyro_std: float,
+                mag_sample: float) -> MagyroError:
+    """What a magnetometer cloud that fits no ellipsoid means, judged against how the gyro says the device turned
+    (`magyro.front.causes`: too little motion or one axis, exit 3; a magnetometer that does not follow or a
+    field that is not homogeneous, exit 2; else too little of the sphere, exit 3)."""
+    def analysis_of():
+        field = ellipsoid.surrogate_field_directions(session.mag)
+        return analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std,
                        mag_sample / np.mean(np.linalg.norm(session.mag, axis=1)))
-    gyro_note = "" if analysis.full_rank else f" Gyro parameters: {analysis.summary()}."
-    if cloud.kind != "sparse" and span_deg < SMALL_TURN_DEG:
-        return ObservabilityError(
-            f"the device turned too little: at most {span_deg:.0f} deg from its first attitude (gyro), so the field "
-            "directions cover a small patch of the sphere; the magnetometer's soft/hard iron cannot be fitted. "
-            "Turn the device through large angles (90 deg or more) about all three of its axes, so that the field "
-            f"sweeps much of the sphere.{gyro_note}", analysis)
-    return ObservabilityError(f"{cloud}; the magnetometer's soft/hard iron cannot be fitted. Turn the device through "
-                              f"large angles about all three of its axes.{gyro_note}", analysis)
+
+    return causes.cloud_error(session, kind, message, found.gyro_mean_rad_s, analysis_of)
 
 
 UNIT_CHECK_BLOCK_S = 0.1       # the field's turning, too slow side: steps between means over 0.1 s blocks
@@ -170,10 +145,16 @@ def prepare(session: Session, options: Options) -> Prepared:
     try:
         fit = ellipsoid.fit_ellipsoid(session.mag, mag_sample)
     except ellipsoid.DegenerateCloud as cloud:
-        raise degenerate_cloud_error(session, cloud, found, gyro_std, mag_sample) from None
+        raise cloud_error(session, cloud.kind, str(cloud), found, gyro_std, mag_sample) from None
+    except ellipsoid.NotAnEllipsoid as shape:
+        raise cloud_error(session, "hyperboloid", str(shape), found, gyro_std, mag_sample) from None
     field = ellipsoid.calibrated_field(fit.R, fit.h, session.mag)
     check_gyro_unit(session, field)
     analysis = analyse(session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field, gyro_std, mag_sample * float(np.mean(np.diag(fit.R))))
+    motion = causes.motion_error(causes.turning(session, found.gyro_mean_rad_s), "" if analysis.full_rank else
+                                 f" Gyro parameters: {analysis.summary().rstrip('.')}.", analysis)
+    if motion is not None:   # a device that barely turned, or about one axis, even with --force: said so, not
+        raise motion         # "rotate about y" nor a linear estimate that comes out mirrored
     if not analysis.full_rank and not options.force:
         raise ObservabilityError(
             f"the motion does not excite every gyro parameter: {analysis.summary()} (--force solves anyway)", analysis

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from magyro.front import field_checks
 from magyro.front.findings import GAP_PERIODS, SEVERITIES, Finding, RecordingCheck, SensorStats
 from magyro.front.signals import field_turning_findings, saturation, spikes
 from magyro.session import Session
@@ -46,6 +47,12 @@ BURST_MIN_SHORT_FRACTION = 0.3    # ... make up this share of all intervals ...
 BURST_LONG_PERIODS = 3.0          # ... and the waits between bursts are longer than this
 BURST_MIN_LONG = 3
 RESTAMP_QUANTILE = 0.1            # of the per-burst earliest arrivals: buffered samples arrive late, never early
+RESTAMP_WANDER_PERIODS = 1.0      # earliest arrivals wandering more than this off one line (or RESTAMP_WANDER_S):
+RESTAMP_WANDER_S = 0.005          #   drifting clocks ...
+RESTAMP_WINDOW_S = 5.0            # ... followed window by window
+RESTAMP_PASSES = 3
+RESTAMP_DRIFT_QUANTILE = 0.0      # within a window, once flattened: the lowest (a sample never arrives early)
+RESTAMP_TRUST_PERIODS = 3.0       # still wandering this much after that: no restamp can be trusted (exit 2)
 JITTER_WARN_FRACTION = 0.25       # robust std of the intervals over this share of the period
 HELD_MIN_ROWS, HELD_MIN_FRACTION, HELD_WARN_FRACTION = 10, 0.02, 0.5
 
@@ -58,6 +65,8 @@ class Evidence:
     held: dict = field(default_factory=dict)        # sensor -> bool mask of rows repeating the previous row
     saturated: np.ndarray | None = None             # gyro rows with an axis at a saturation plateau
     spikes: np.ndarray | None = None                # magnetometer rows that are spikes
+    mag_saturated: np.ndarray | None = None         # magnetometer rows with an axis pinned at its range
+    anomaly: np.ndarray | None = None               # magnetometer rows in a field anomaly
 
 
 def check_recording(session: Session) -> RecordingCheck:
@@ -73,7 +82,9 @@ def inspect(session: Session) -> tuple[RecordingCheck, Evidence]:
     if few:
         return too_few(session, few), Evidence(held={s: np.zeros(len(t), dtype=bool) for s, (t, _) in series.items()},
                                                saturated=np.zeros(len(session.t_gyro_s), dtype=bool),
-                                               spikes=np.zeros(len(session.t_mag_s), dtype=bool))
+                                               spikes=np.zeros(len(session.t_mag_s), dtype=bool),
+                                               mag_saturated=np.zeros(len(session.t_mag_s), dtype=bool),
+                                               anomaly=np.zeros(len(session.t_mag_s), dtype=bool))
     for sensor, (t, x) in series.items():
         stat, found, restamped, held = sensor_clock_and_rows(sensor, t, x)
         stats[sensor] = stat
@@ -84,12 +95,15 @@ def inspect(session: Session) -> tuple[RecordingCheck, Evidence]:
     findings += time_unit_findings(stats)
     evidence.saturated, found = saturation(session.t_gyro_s, session.gyro_rad_s)
     findings += found
-    evidence.spikes, found = spikes(session.t_mag_s, session.mag, session.mag_unit)
+    held_m = evidence.held["magnetometer"]   # mostly repeats: compare the fresh readings only
+    evidence.spikes, found = spikes(session.t_mag_s, session.mag, session.mag_unit,
+                                    held_m if held_m.mean() >= HELD_WARN_FRACTION else None)
     findings += found
+    findings += magnetometer_findings(session, evidence, any(f.kind == "time_unit" for f in findings))
     findings += overlap_findings(stats)
     t_g = evidence.restamped.get("gyro", session.t_gyro_s)
     t_m = evidence.restamped.get("magnetometer", session.t_mag_s)
-    keep_m = ~evidence.held["magnetometer"] & ~evidence.spikes
+    keep_m = ~evidence.held["magnetometer"] & ~evidence.spikes & ~evidence.mag_saturated & ~evidence.anomaly
     lag = ()
     if not any(f.kind == "time_unit" for f in findings):   # rates and lags mean nothing in the wrong unit
         found, lag = field_turning_findings(t_g, session.gyro_rad_s, t_m[keep_m], session.mag[keep_m])
@@ -100,6 +114,24 @@ def inspect(session: Session) -> tuple[RecordingCheck, Evidence]:
     lag_s, lag_at_s = lag if lag else ((), ())
     return RecordingCheck(tuple(findings), stats, tuple(holes), lag_s, source=session.source,
                           lag_at_s=lag_at_s), evidence
+
+
+def magnetometer_findings(session: Session, evidence: Evidence, unit_wrong: bool = False) -> list:
+    """Units, sensor faults and the field (magyro.front.field_checks), in that order; fills the evidence's
+    saturated and anomalous magnetometer rows."""
+    t, mag = session.t_mag_s, session.mag
+    findings = field_checks.normalised_finding(t, mag)
+    findings += field_checks.stuck_findings(session.t_gyro_s, session.gyro_rad_s, t, mag)
+    evidence.mag_saturated, found = field_checks.saturation(t, mag, session.mag_unit)
+    findings += found
+    if not any(f.kind == "stuck" and f.sensor == "magnetometer" for f in findings) and not unit_wrong:
+        findings += field_checks.slow_finding(t, evidence.held["magnetometer"])
+    evidence.anomaly = np.zeros(len(t), dtype=bool)
+    if any(f.severity == "error" for f in findings):
+        return findings
+    keep = ~evidence.held["magnetometer"] & ~evidence.spikes & ~evidence.mag_saturated
+    evidence.anomaly, found, fitted = field_checks.anomalies(t, mag, keep, session.mag_unit)
+    return findings + found + ([] if fitted else field_checks.cloud_fault(session, keep))
 
 
 def too_few(session: Session, few: dict) -> RecordingCheck:
@@ -125,8 +157,8 @@ def sensor_clock_and_rows(sensor: str, t: np.ndarray, x: np.ndarray):
     if bursty:
         jitter = float("nan")
         gaps = np.flatnonzero(dt > GAP_PERIODS * np.median(dt[long]))   # data lost between bursts
-        restamped, earliest, period = restamp_segments(t, long, gaps)
-        findings.append(bursts_finding(sensor, t, dt, short, long, earliest, period))
+        restamped, earliest, period, wander = restamp_segments(t, long, gaps)
+        findings.append(bursts_finding(sensor, t, dt, short, long, earliest, period, wander))
         if len(gaps):
             findings.append(gaps_finding(sensor, t, gaps, period))
     else:
@@ -154,14 +186,16 @@ def sensor_clock_and_rows(sensor: str, t: np.ndarray, x: np.ndarray):
     return stat, findings, restamped, held
 
 
-def restamp_from_index(t: np.ndarray, long: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float]:
-    """(t_k = a + b k, each burst's earliest arrival after that line, b): b the least-squares slope of the
-    stamps against the sample index, a from a low quantile of each burst's earliest arrival (buffered
-    samples arrive late, never early). `long` marks the intervals that end a burst (default: > 3 mean
-    periods)."""
+def restamp_from_index(t: np.ndarray, long: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(t_k = a(k) + b k, each burst's earliest arrival after that clock, b, how far the earliest arrivals wander
+    off one line (s; 0 when they do not and a is one number)): b the least-squares slope of the
+    stamps against the sample index; a from a low quantile of each burst's earliest arrival (buffered samples
+    arrive late, never early). When the two clocks drift (the earliest arrivals wander along the line by more
+    than RESTAMP_WANDER_PERIODS periods), a(k) follows them: the low quantile of every RESTAMP_WINDOW_S of bursts,
+    joined by straight lines. `long` marks the intervals that end a burst (default: > 3 mean periods)."""
     n = len(t)
     if n < 3:
-        return t.copy(), np.zeros(1), float(t[-1] - t[0]) if n == 2 else float("nan")
+        return t.copy(), np.zeros(1), float(t[-1] - t[0]) if n == 2 else float("nan"), 0.0
     k = np.arange(n, dtype=float) - (n - 1) / 2
     t_mean = float(np.mean(t))
     b = float(np.dot(k, t - t_mean) / np.dot(k, k))
@@ -172,42 +206,76 @@ def restamp_from_index(t: np.ndarray, long: np.ndarray | None = None) -> tuple[n
     starts = np.flatnonzero(np.concatenate([[True], long]))
     earliest = np.minimum.reduceat(residual, starts)
     a = float(np.quantile(earliest, RESTAMP_QUANTILE))
-    return line + a, earliest - a, b
+    wander = float(np.quantile(earliest, 0.9) - a)
+    if wander <= max(RESTAMP_WANDER_PERIODS * b, RESTAMP_WANDER_S):
+        return line + a, earliest - a, b, 0.0
+    offset = np.zeros(n)
+    first = earliest
+    for _ in range(RESTAMP_PASSES):   # each pass flattens what the last left: a window's low quantile is then unbiased
+        offset += drifting_offset(t[starts], first, k[starts], k)
+        first = earliest - offset[starts]
+    return line + offset, first, b, wander
+
+
+def drifting_offset(t_start: np.ndarray, earliest: np.ndarray, k_start: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """The offset a(k) under the earliest arrivals: their RESTAMP_DRIFT_QUANTILE in windows of RESTAMP_WINDOW_S,
+    at each window's middle index, joined by straight lines (continued beyond the first and the last)."""
+    window = np.floor((t_start - t_start[0]) / RESTAMP_WINDOW_S).astype(int)
+    anchors_k, anchors_a = [], []
+    for w in np.unique(window):
+        inside = window == w
+        if inside.sum() >= 3:
+            anchors_k.append(float(np.median(k_start[inside])))
+            anchors_a.append(float(np.quantile(earliest[inside], RESTAMP_DRIFT_QUANTILE)))
+    if len(anchors_k) < 2:
+        return np.full(len(k), float(np.quantile(earliest, RESTAMP_QUANTILE)))
+    slope_first = (anchors_a[1] - anchors_a[0]) / (anchors_k[1] - anchors_k[0])
+    slope_last = (anchors_a[-1] - anchors_a[-2]) / (anchors_k[-1] - anchors_k[-2])
+    anchors_a = [anchors_a[0] + slope_first * (k[0] - anchors_k[0])] + anchors_a + \
+                [anchors_a[-1] + slope_last * (k[-1] - anchors_k[-1])]
+    return np.interp(k, [k[0]] + anchors_k + [k[-1]], anchors_a)
 
 
 def restamp_segments(t: np.ndarray, long: np.ndarray, gaps: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """`restamp_from_index` on each stretch between gaps (the index says nothing across lost data):
-    (times, earliest arrivals, the period of the longest stretch)."""
+    (times, earliest arrivals, the period of the longest stretch, the largest wander off one line)."""
     bounds = np.concatenate([[0], gaps + 1, [len(t)]])
-    times, earliest, periods = [], [], []
+    times, earliest, periods, wander = [], [], [], 0.0
     for a, b in zip(bounds[:-1], bounds[1:]):
-        fitted, first, period = restamp_from_index(t[a:b], long[a:b - 1])
+        fitted, first, period, off_line = restamp_from_index(t[a:b], long[a:b - 1])
         times.append(fitted)
         earliest.append(first)
         periods.append((b - a, period))
-    return np.concatenate(times), np.concatenate(earliest), float(max(periods)[1])
+        wander = max(wander, off_line)
+    return np.concatenate(times), np.concatenate(earliest), float(max(periods)[1]), wander
 
 
-def bursts_finding(sensor, t, dt, short, long, earliest, period) -> Finding:
+def bursts_finding(sensor, t, dt, short, long, earliest, period, wander=0.0) -> Finding:
     wait = float(np.median(dt[long]))
     drift = float(np.quantile(earliest, 0.9) - np.quantile(earliest, RESTAMP_QUANTILE))
-    lost = drift > 3 * period
+    lost = drift > RESTAMP_TRUST_PERIODS * period
     return Finding(
         "bursts", sensor,
         f"the {sensor} stamps come in bursts: {100 * short.mean():.0f} % of the intervals are under "
         f"{BURST_SHORT_PERIODS:g} period (median {np.median(dt[short]) * 1e3:.2f} ms against a mean period of "
         f"{period * 1e3:.2f} ms), then {int(long.sum())} waits of {wait * 1e3:.0f} ms: these are arrival times "
         f"of buffered data, not sample times" + (
-            f"; the earliest arrival per burst wanders by {drift * 1e3:.0f} ms, so samples may be missing and "
-            "the restamped clock is off by that much" if lost else ""),
-        ((t[0], t[-1]),), "warning",
+            f"; their earliest arrivals wander by {wander * 1e3:.0f} ms off one line (the sensor's and the host's "
+            f"clocks drift), so the restamp follows them {RESTAMP_WINDOW_S:g} s at a time" if wander and not lost
+            else "") + (
+            f"; even followed window by window ({RESTAMP_WINDOW_S:g} s), the earliest arrival per burst wanders by "
+            f"{drift * 1e3:.0f} ms: the {sensor}'s clock cannot be rebuilt from its sample index (samples missing, "
+            "or a clock that jumps), so no restamp can be trusted" if lost else ""),
+        ((t[0], t[-1]),), "error" if lost else "warning",
         f"each sample is stamped up to {wait * 1e3:.0f} ms late, by a varying amount: the gyro and the "
         "magnetometer no longer line up (host-stamped bursts gave a bias 0.4-0.6 deg/s off, 20-30 sigma, "
         "with exit 0)",
-        "magyro restamps the sensor from its sample index (t = a + b k: b fitted, a from the earliest "
-        "arrivals); Repairs(restamp_bursts=False) keeps the stamps. Better: stamp on the sensor side",
+        ("stamp the samples on the sensor or the microcontroller, or log the sensor's own sample counter"
+         if lost else "magyro restamps the sensor from its sample index (t = a(k) + b k: b fitted, a from the "
+         "earliest arrivals, following drifting clocks); Repairs(restamp_bursts=False) keeps the stamps. "
+         "Better: stamp on the sensor side"),
         numbers={"short_fraction": float(short.mean()), "wait_s": wait, "period_s": float(period),
-                 "earliest_arrival_spread_s": drift})
+                 "earliest_arrival_spread_s": drift, "wander_off_one_line_s": wander})
 
 
 def gaps_of(t: np.ndarray, period: float, minimum_periods: float = GAP_PERIODS) -> list:

@@ -46,6 +46,12 @@ def repair_recording(session: Session, repairs: Repairs | None = None) -> tuple[
     if repairs.drop_spikes and evidence.spikes.any():
         keep["magnetometer"] &= ~evidence.spikes
         fixed.add(("spikes", "magnetometer"))
+    if repairs.drop_spikes and evidence.anomaly.any():
+        keep["magnetometer"] &= ~evidence.anomaly
+        fixed.add(("field_anomaly", "magnetometer"))
+    if repairs.cut_saturation and evidence.mag_saturated.any():
+        keep["magnetometer"] &= ~evidence.mag_saturated
+        fixed.add(("saturation", "magnetometer"))
     if repairs.cut_saturation and evidence.saturated.any():
         evidence.saturated = widened_to_holes(evidence.saturated)
         keep["gyro"] &= ~evidence.saturated

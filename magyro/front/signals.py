@@ -17,6 +17,8 @@ SAT_STEEP_FRACTION = 0.01         # a step of this share of the range into or ou
 FULL_SCALES_DEG_S = (125, 250, 245, 500, 1000, 2000, 4000)   # named when within 3 % (250 before ST's 245)
 SPIKE_NOISE = 8.0                 # a spike is off the neighbours' median by SPIKE_SPREAD x
 SPIKE_SPREAD = 3.0                #   (SPIKE_NOISE noise std + the neighbours' inner spread)
+SPIKE_ALWAYS = 3                  # up to this many are spikes whatever the share
+SPIKE_MAX_FRACTION = 0.01         # more than this share of the samples "far off" is the noise's shape, not spikes
 LAG_GRID_S, LAG_SMOOTH_S, LAG_MAX_S = 0.005, 0.05, 0.5
 LAG_SHARP_S, LAG_MIN_SHARPNESS = 0.05, 0.02   # the correlation must drop this much 50 ms off its peak
 DRIFT_MIN_S = 0.02                # lag change between the first and last part of the recording
@@ -67,34 +69,63 @@ def saturation_finding(name, sign, extreme, t, at, begin, end) -> Finding:
         numbers={"axis": name, "limit_deg_s": sign * limit, "samples": int(at.sum()), "plateaus": len(begin)})
 
 
-def spikes(t: np.ndarray, mag: np.ndarray, unit: str) -> tuple[np.ndarray, list]:
+def spikes(t: np.ndarray, mag: np.ndarray, unit: str, held: np.ndarray | None = None) -> tuple[np.ndarray, list]:
     """(rows that are spikes, findings): a sample off the median of its four neighbours by more than
-    SPIKE_SPREAD x (SPIKE_NOISE noise std + the neighbours' inner spread), on any axis."""
-    n = len(mag)
-    flagged = np.zeros(n, dtype=bool)
+    SPIKE_SPREAD x (SPIKE_NOISE noise std + the neighbours' inner spread), on any axis. Rows that repeat the
+    previous one (`held`) are left out of the comparison (repeats make the neighbours agree exactly). More
+    than SPIKE_MAX_FRACTION of the samples flagged is the noise's own shape: nothing is dropped, and the
+    finding says so."""
+    flagged = np.zeros(len(mag), dtype=bool)
+    rows = np.flatnonzero(~held) if held is not None else np.arange(len(mag))
+    x = mag[rows]
+    n = len(x)
     if n < 5:
         return flagged, []
-    a, b, c, d = mag[:-4], mag[1:-3], mag[3:-1], mag[4:]
+    a, b, c, d = x[:-4], x[1:-3], x[3:-1], x[4:]
     lo1, hi1, lo2, hi2 = np.minimum(a, b), np.maximum(a, b), np.minimum(c, d), np.maximum(c, d)
     p, q = np.maximum(lo1, lo2), np.minimum(hi1, hi2)
     second, third = np.minimum(p, q), np.maximum(p, q)      # the middle two of the four neighbours
-    off = np.abs(mag[2:-2] - 0.5 * (second + third))
+    off = np.abs(x[2:-2] - 0.5 * (second + third))
     noise = 1.4826 * np.median(off, axis=0)
-    flagged[2:-2] = np.any(off > SPIKE_SPREAD * (SPIKE_NOISE * noise + (third - second)), axis=1)
-    if not flagged.any():
+    if np.any(noise == 0):   # quantised readings that mostly agree: the quantisation step is the noise's floor
+        noise = np.maximum(noise, resolution(x))
+    far = np.any(off > SPIKE_SPREAD * (SPIKE_NOISE * noise + (third - second)), axis=1)
+    if not far.any():
         return flagged, []
-    i = np.flatnonzero(flagged)
+    i = np.flatnonzero(far) + 2
     size = off[i - 2].max(axis=1)
-    where = tuple((float(t[j]), float(t[j])) for j in i)
-    shown = ", ".join(f"{t[j]:.3f}" for j in i[:5]) + (" ..." if len(i) > 5 else "")
+    ratio = float(np.max(off[i - 2] / noise))
+    shown = ", ".join(f"{t[rows[j]]:.3f}" for j in i[:5]) + (" ..." if len(i) > 5 else "")
+    numbers = {"count": len(i), "largest": float(size.max()), "noise_std": float(noise.max()),
+               "fraction": len(i) / n}
+    if len(i) > max(SPIKE_MAX_FRACTION * n, SPIKE_ALWAYS):
+        return flagged, [Finding(
+            "spikes", "magnetometer", f"{len(i)} magnetometer samples ({100 * len(i) / n:.1f} %) are far off their "
+            f"neighbours (up to {size.max():.3g} {unit}, {ratio:.0f}x the noise): too many to be spikes, so none is "
+            f"dropped (more than {100 * SPIKE_MAX_FRACTION:g} % is the noise's own shape or a field that changes "
+            "faster than it is sampled)", ((float(t[0]), float(t[-1])),), "info",
+            "a noise with heavy tails weighs a little more in the least squares than its std says",
+            "nothing; if the samples are truly disturbed, check the wiring or the I2C bus", numbers=numbers)]
+    flagged[rows[i]] = True
+    where = tuple((float(t[rows[j]]), float(t[rows[j]])) for j in i)
     return flagged, [Finding(
         "spikes", "magnetometer", f"{len(i)} magnetometer sample(s) far off their neighbours (up to "
-        f"{size.max():.3g} {unit}, {size.max() / max(float(noise.max()), 1e-12):.0f}x the noise) at {shown} s",
+        f"{size.max():.3g} {unit}, {ratio:.0f}x the noise) at {shown} s",
         where, "warning",
         "the ellipsoid fit is least squares: 20 spikes in 7500 samples made it call a good recording "
         "'too little of the sphere' (exit 3)",
         "magyro drops them (Repairs(drop_spikes=False) keeps them); check the wiring or the I2C bus",
-        numbers={"count": len(i), "largest": float(size.max()), "noise_std": float(noise.max())})]
+        numbers=numbers)]
+
+
+def resolution(x: np.ndarray) -> np.ndarray:
+    """Per axis, the smallest step between two different readings (the quantisation; 0 for a constant axis)."""
+    out = np.zeros(x.shape[1])
+    for k in range(x.shape[1]):
+        steps = np.diff(np.unique(x[:, k]))
+        if len(steps):
+            out[k] = float(steps.min())
+    return out
 
 
 def field_directions(mag: np.ndarray):

@@ -5,7 +5,7 @@ session layout becomes a `Session` only when: the required columns are there and
 optional group is all or nothing; `t` is numeric, finite and strictly increasing; every
 sensor value is a finite number or empty, and a sensor group is on a row whole or not at
 all; there are at least `MIN_SAMPLES` gyro and magnetometer samples; the time is in
-seconds (a gyro sampled between 1 Hz and 100 kHz: stamps in ms, us or ns are named as
+seconds (a gyro sampled between 1 Hz and 33 kHz: stamps in ms, us or ns are named as
 such, before any check on the rates could blame the gyro); the gyro unit is known and
 the gyro rates are plausible in it (deg/s data read as rad/s is caught).
 
@@ -27,7 +27,7 @@ from magyro.session import Session
 
 MIN_SAMPLES = 100
 MAX_PLAUSIBLE_RATE_RAD_S = 40.0  # ~2300 deg/s, beyond any MEMS gyro full scale
-MIN_PLAUSIBLE_STEP_S = 1e-5      # a gyro sampled faster than 100 kHz: the time is not in seconds
+MIN_PLAUSIBLE_STEP_S = 3e-5      # a gyro sampled faster than 33 kHz (the fastest MEMS output is 32 kHz): not seconds
 MAX_PLAUSIBLE_STEP_S = 1.0       # slower than 1 Hz: no hand motion can be integrated; likely ms, us or ns
 TYPICAL_GYRO_RATE_HZ = 200.0     # among plausible readings of the stamps, the one nearest this is named
 TIME_UNITS_S = {"s": ("seconds", 1.0), "ms": ("milliseconds", 1e-3), "us": ("microseconds", 1e-6),
@@ -236,7 +236,7 @@ def _check_sample_count(sensor: str, group: tuple, n_samples: int) -> None:
 
 
 def check_time_unit(t_gyro: np.ndarray, read_as: str = "s", fix: Callable[[str], str] | None = None) -> None:
-    """InputError unless the gyro's median sample interval, with the stamps read in `read_as`, is 10 us to 1 s.
+    """InputError unless the gyro's median sample interval, with the stamps read in `read_as`, is 30 us to 1 s.
 
     The stamps may be in another unit of TIME_UNITS_S: the message names the one
     that makes the gyro's rate plausible (nearest TYPICAL_GYRO_RATE_HZ) and how to
@@ -260,7 +260,7 @@ def time_unit_message(step_s: float, read_as: str = "s", fix: Callable[[str], st
     if not plausible:
         return (f"the time column cannot be right: the gyro's median step is {raw_step:.4g} {shown} "
                 f"({1 / step_s:.4g} Hz if {read_as}), and no unit of {', '.join(TIME_UNITS_S)} gives a "
-                f"gyro rate between 1 Hz and 100 kHz; check the time column (t in seconds)")
+                f"gyro rate between 1 Hz and 33 kHz; check the time column (t in seconds)")
     unit = min(plausible, key=lambda u: abs(np.log(1.0 / plausible[u] / TYPICAL_GYRO_RATE_HZ)))
     how = fix(unit) if fix else (f"convert it to seconds, or import with `magyro import csv --time-unit {unit}`"
                                  if unit != "s" else "import with `magyro import csv --time-unit s`")

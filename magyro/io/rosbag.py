@@ -3,9 +3,15 @@
 Topics: the gyro is a `sensor_msgs/msg/Imu` topic (`angular_velocity`, rad/s; its
 `linear_acceleration`, m/s^2, is the accelerometer unless the messages mark it absent with
 `linear_acceleration_covariance[0] == -1`), the magnetometer a `sensor_msgs/msg/MagneticField`
-topic (`magnetic_field`, tesla, imported in uT: value * 1e6). Each is the topic named, or
-else the only topic of its type in the bag; several of a type and none named is refused
-with the list of candidates.
+topic (`magnetic_field`, tesla, imported in uT: value * 1e6) or, from older drivers, a
+`geometry_msgs/msg/Vector3Stamped` topic (`vector`). Vector3Stamped carries no unit: the
+drivers that published it (phidgets_imu, razor_imu_9dof before MagneticField) wrote gauss, or a
+unit vector (the Razor's normalised heading field). Readings whose norm is 1 within 1 % on every
+sample are imported as they are with the unit "normalised"; others as gauss, imported in uT
+(value * 100): the imu_tools Phidgets bag of 2013 reads 0.37-0.38 there, the same samples
+its 2017 MagneticField version gives as 3.7e-5 T. A MagneticField topic is preferred when both
+exist. Each is the topic named, or else the only topic of its type in the bag; several of a
+type and none named is refused with the list of candidates.
 
 Times are the message header stamps (sec + nanosec, integer nanoseconds), not the bag's
 receive times; in the bag's order, a message whose stamp is not after every earlier stamp of
@@ -29,7 +35,10 @@ from magyro.session import Session
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
 MAG_TYPE = "sensor_msgs/msg/MagneticField"
+OLD_MAG_TYPE = "geometry_msgs/msg/Vector3Stamped"   # older drivers' magnetometer, in gauss (or normalised)
 TESLA_TO_UT = 1e6
+GAUSS_TO_UT = 100.0
+UNIT_NORM_TOLERANCE = 0.01         # every |vector| within 1 % of 1: a normalised field, not gauss
 ROSBAG_INSTALL_HINT = "install it with pip install 'magyro[rosbag]' (or pip install rosbags)"
 
 
@@ -52,9 +61,10 @@ def import_rosbag(path, imu_topic: str | None = None, mag_topic: str | None = No
     try:
         topics = {c.topic: c.msgtype for c in reader.connections}
         imu_name = _choose(path, topics, IMU_TYPE, imu_topic, "--imu-topic")
-        mag_name = _choose(path, topics, MAG_TYPE, mag_topic, "--mag-topic")
+        mag_type = _magnetometer_type(topics, mag_topic)
+        mag_name = _choose(path, topics, mag_type, mag_topic, "--mag-topic")
         imu = _read(path, reader, imu_name, IMU_TYPE)
-        mag = _read(path, reader, mag_name, MAG_TYPE)
+        mag = _read(path, reader, mag_name, mag_type)
         ros_version = "ROS2" if reader.is2 else "ROS1"
     except InputError:
         raise
@@ -91,9 +101,14 @@ def import_rosbag(path, imu_topic: str | None = None, mag_topic: str | None = No
                          + ("; linear_acceleration m/s^2 as is" if with_acc else
                             "; linear_acceleration marked absent (covariance[0] = -1), not imported")),
     }
+    if mag_type == OLD_MAG_TYPE:
+        metadata.update({"rosbag_mag_type": OLD_MAG_TYPE, "mag_unit": mag["unit"]})
+        metadata["rosbag_units"] = metadata["rosbag_units"].replace(
+            "magnetic_field tesla * 1e6 = uT", "vector (Vector3Stamped) " + (
+                "normalised (every |v| = 1), kept as is" if mag["unit"] == "normalised" else "gauss * 100 = uT"))
     if with_acc:
         metadata["acc_unit"] = "m/s^2"
-    return session_from_table(table, metadata, str(path), gyro_unit="rad/s", mag_unit="uT")
+    return session_from_table(table, metadata, str(path), gyro_unit="rad/s", mag_unit=metadata["mag_unit"])
 
 
 def convert_rosbag(path, output, imu_topic: str | None = None, mag_topic: str | None = None,
@@ -123,6 +138,13 @@ def _rosbags(path: Path):
     except importlib.metadata.PackageNotFoundError:
         version = "unknown"
     return AnyReader, get_typestore, Stores, version
+
+
+def _magnetometer_type(topics: dict, named: str | None) -> str:
+    """MagneticField, unless the topic named (or, none named, every magnetometer topic) is a Vector3Stamped."""
+    if named is not None:
+        return OLD_MAG_TYPE if topics.get(named) == OLD_MAG_TYPE else MAG_TYPE
+    return OLD_MAG_TYPE if OLD_MAG_TYPE in topics.values() and MAG_TYPE not in topics.values() else MAG_TYPE
 
 
 def _choose(path: Path, topics: dict, msgtype: str, named: str | None, option: str) -> str:
@@ -157,7 +179,7 @@ def _read(path: Path, reader, topic: str, msgtype: str) -> dict:
             acc.append((a.x, a.y, a.z))
             acc_present.append(msg.linear_acceleration_covariance[0] != -1)
         else:
-            b = msg.magnetic_field
+            b = msg.magnetic_field if msgtype == MAG_TYPE else msg.vector
             mag.append((b.x, b.y, b.z))
     stamps = np.asarray(stamps, dtype=np.int64)
     rows = len(stamps)
@@ -174,9 +196,22 @@ def _read(path: Path, reader, topic: str, msgtype: str) -> dict:
         stream["acc_present"] = np.asarray(acc_present, dtype=bool)[keep]
         stream["acc"] = np.asarray(acc, dtype=np.float64).reshape(-1, 3)[keep]
         stream["acc"][~stream["acc_present"]] = np.nan  # marked absent: no accelerometer sample
-    else:
+    elif msgtype == MAG_TYPE:
         stream["mag"] = np.asarray(mag, dtype=np.float64).reshape(-1, 3)[keep] * TESLA_TO_UT
+        stream["unit"] = "uT"
+    else:
+        stream["mag"], stream["unit"] = _vector3_field(np.asarray(mag, dtype=np.float64).reshape(-1, 3)[keep])
     return stream
+
+
+def _vector3_field(vector: np.ndarray) -> tuple[np.ndarray, str]:
+    """(field, unit) of a Vector3Stamped magnetometer: unit vectors stay as they are ("normalised"), anything
+    else is gauss, returned in uT. Rows without a number (a driver's empty messages) stay empty."""
+    norm = np.linalg.norm(vector, axis=1)
+    norm = norm[np.isfinite(norm)]
+    if len(norm) and np.all(np.abs(norm - 1.0) < UNIT_NORM_TOLERANCE):
+        return vector, "normalised"
+    return vector * GAUSS_TO_UT, "uT"
 
 
 def _describe(stream: dict) -> str:

@@ -150,6 +150,9 @@ def unobservable_groups(weak_vectors: np.ndarray, at_least: float = 0.1) -> list
     return [f"{name} {100 * w:.0f}%" for w, name in sorted(groups, reverse=True) if w >= at_least]
 
 
+STILL_TURN_DEG = 10.0   # the rates, less their mean, add up to less than this: the device did not turn
+
+
 def motion_advice(t_gyro_s, gyro_rad_s, t_mag_s, field_m) -> list[str]:
     """What motion would excite the missing directions, in plain words."""
     w = trapezoid_weights(t_gyro_s)
@@ -159,6 +162,11 @@ def motion_advice(t_gyro_s, gyro_rad_s, t_mag_s, field_m) -> list[str]:
     total = lam.sum()
     if total <= 0 or np.sqrt(lam[-1]) < np.deg2rad(2.0):
         return ["The device was (nearly) still: turn it by hand about all three of its axes, through large angles."]
+    turned_deg = np.rad2deg(np.max(np.linalg.norm(np.cumsum(centred * w[:, None], axis=0), axis=1)))
+    if turned_deg < STILL_TURN_DEG:   # rates that vary (a vibrating bench) but add up to no turn
+        return [f"The device did not turn: at most {turned_deg:.0f} deg from its first attitude, although its rates "
+                f"vary by {np.rad2deg(np.sqrt(lam[-1])):.1f} deg/s (vibration); turn it by hand about all three of "
+                "its axes, through large angles."]
     out = []
     missing = V[:, lam < 0.02 * lam[-1]]
     if missing.shape[1]:
