@@ -95,7 +95,15 @@ def add_split_check(cal: Calibration, session: Session, options: Options, method
 
     moving = moving_session(session, options)[0]
     halves = replace(method, trajectory=False) if getattr(method, "trajectory", False) else method  # no attitudes kept
-    report = consistency.split_check(moving, cal, replace(options, split_check=False), halves.calibrate)
+
+    def calibrate_half(half: Session, half_options: Options) -> Calibration:   # a half passes the same result check
+        from magyro.result.check import check_result
+
+        result = halves.calibrate(half, half_options)
+        check_result(result, half, method.name)
+        return result
+
+    report = consistency.split_check(moving, cal, replace(options, split_check=False), calibrate_half)
     cal.consistency = report
     warning = consistency.split_warning(report)
     if warning:

@@ -102,3 +102,24 @@ def disturbance_covariance(recorder: DisturbanceSensitivity, found: FieldDisturb
     total.add(S, t_s)
     omega = found.std_fraction**2 * total.result()
     return 0.5 * (omega + omega.T)
+
+
+def step1_room_covariance(t_mag_s: np.ndarray, mag: np.ndarray, ref: MagnetometerRefinement,
+                          found: FieldDisturbance) -> np.ndarray:
+    """What the room's disturbance adds to step 1's covariance of [R upper, h] (9 x 9).
+
+    Step 1 fits |R (y - h)|^2 = 1; a disturbance delta moves each residual by 2 delta along the field, and
+    its correlation over seconds makes the sandwich over independent samples too small. With J the step's
+    Jacobian rows: (J^T J)^-1 [4 sigma^2 sum_jk exp(-|t_j - t_k| / T) J_j J_k^T] (J^T J)^-1. It enters the
+    filter through the consider states, so the gyro parameters' std counts it too.
+    """
+    if found.std_fraction <= 0.0:
+        return np.zeros((9, 9))
+    from magyro.ekf.magnetometer import norm_terms
+
+    J = norm_terms(np.asarray(mag, dtype=float), ref.R, ref.h)[3]
+    total = ExponentialDoubleSum(found.correlation_time_s)
+    total.add(J[:, :, None], np.asarray(t_mag_s, dtype=float))
+    Hi = np.linalg.inv(J.T @ J)
+    out = Hi @ (4.0 * found.std_fraction**2 * total.result()) @ Hi
+    return 0.5 * (out + out.T)
