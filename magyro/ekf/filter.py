@@ -129,6 +129,7 @@ class ErrorStateEKF:
         self.history_stride = history_stride
         self._rows: list[tuple] = []
         self.room = None           # a DisturbanceSensitivity (magyro.ekf.room) to record, when the room is counted
+        self.innovations = None    # a list to append (innovation, S) of every update to, when asked
 
     # ---- the nominal state as arrays
 
@@ -290,6 +291,8 @@ class ErrorStateEKF:
         nu = (v1, v2, v3)
         self.nis_sum += A * v1 * v1 + E * v2 * v2 + I * v3 * v3 + 2.0 * (Bs * v1 * v2 + Cs * v1 * v3 + F * v2 * v3)
         dx = (Wa @ nu).tolist()
+        if self.innovations is not None:
+            self.innovations.append((nu, S))
         if self.room is not None:
             self.room.update(self.t, Wa, H, np.array(self._C).reshape(3, 3))
         P[:N_STATE] -= Wa @ PHt.T
