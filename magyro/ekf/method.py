@@ -7,7 +7,8 @@
     2. step 1, the magnetometer: Gauss-Newton on the constant-norm condition,
        from the ellipsoid (`magyro.ekf.magnetometer`)
     3. the filter's prior: eq. (13) on the calibrated field (`magyro.ekf.prior`)
-    4. step 2, the error-state EKF fed the whole session in time order
+    4. step 2, the error-state EKF fed the whole session in time order, the magnetometer stamps shifted
+       by its lag (eq. 13's search) and its noise re-weighted from the innovations
        (`magyro.ekf.streaming`, `magyro.ekf.filter`)
     5. the result: the same Calibration as the joint least squares
        (solver.method = "ekf"), std from the final covariance of
@@ -56,9 +57,12 @@ class EKF:
     Noise levels, rest trimming and the observability gate are those of the
     shared front end (`magyro.front.prepare`: `Options.force`, the noise
     options and `trim_rests` apply; ObservabilityError when the motion does
-    not excite every parameter). A fixed `Options.time_offset_s`
-    (magnetometer lag) shifts the magnetometer stamps; the EKF does not
-    estimate the lag (`Options.estimate_time_offset` is ignored).
+    not excite every parameter). The magnetometer's lag is searched as the
+    least squares' start searches it (eq. 13) and shifts the magnetometer
+    stamps; `Options.estimate_time_offset=False` fixes it at
+    `Options.time_offset_s`. The magnetometer noise is re-weighted from the
+    filter's innovations, and the std counts the room's field disturbance
+    (`magyro.ekf.room`; `count_room=False`: the filter's own covariance).
 
     magnetometer=(R, h): take this magnetometer calibration as exact and skip
     step 1 (the paper's Table I simulation assumes a calibrated magnetometer).

@@ -4,8 +4,8 @@ reported (`magyro.calibrate`), whatever the method says about itself.
 1. The field's turning over 0.1 s windows (paper eq. 13): the calibrated gyro must predict it about as well as
    the plain linear fit does (`turning_misfit_ratio`); a method that lost its way is far above (exit 1).
 2. The same over 1 s windows: a wrong scale or bias hides in the noise of 0.1 s windows (BROAD trial 07 with
-   the EKF at no magnetometer lag: bias z off by 1.3 deg/s, ratio 1.03 at 0.1 s, 1.63 at 1 s; every right
-   result of either method stays within 1.1). Far above is exit 1.
+   the EKF at no magnetometer lag: bias z off by 1.3 deg/s, ratio 1.03 at 0.1 s, 1.63 at 1 s; right
+   results of either method on BROAD 02-21 stay within 1.17). Far above is exit 1.
 3. The bias against the rests' bias: eps_b = -K_g mean(y_rest) (`Calibration.rests`), compared with the
    reported std and the rest mean's own std (the gyro noise density over the rest's length); beyond
    `MAX_REST_Z` it is a warning (a bias can move between rest and motion, with temperature).
@@ -19,7 +19,7 @@ from magyro.front.initial import turning_misfit_ratio
 
 MAX_TURNING_MISFIT = 1.5      # 0.1 s windows: converged solves of either method stay within 1.12
 LONG_WINDOW_S = 1.0
-MAX_LONG_TURNING_MISFIT = 1.35   # 1 s windows: right results within 1.1; the lagged EKF on trial 07 at 1.63
+MAX_LONG_TURNING_MISFIT = 1.35   # 1 s windows: right results within 1.17 (BROAD); the lagged EKF on trial 07 at 1.63
 MAX_REST_Z = 4.0
 
 
@@ -40,7 +40,7 @@ def check_result(cal, moving, method_name: str) -> None:
         raise SolverError(
             f"the {method_name} result does not explain the recording: dead-reckoned over {LONG_WINDOW_S:g} s "
             f"windows, its calibrated gyro predicts the field's turning {long_ratio:.2f}x worse than the plain "
-            f"linear fit (eq. 13) does (right results stay within 1.1), so it is not reported{other}")
+            f"linear fit (eq. 13) does (right results stay within 1.2), so it is not reported{other}")
     z = rest_bias_z(cal)
     if z is not None:
         details["rest_bias_z"] = [float(v) for v in z]
