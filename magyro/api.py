@@ -17,6 +17,7 @@ from pathlib import Path
 from magyro.errors import InputError
 from magyro.options import Options
 from magyro.result.calibration import Calibration
+from magyro.result.check import MAX_TURNING_MISFIT  # noqa: F401  (magyro.report reads it here)
 from magyro.session import Session
 
 
@@ -36,27 +37,36 @@ def method_named(name: str, **knobs):
 def calibrate(session: Session, options: Options | None = None, method=None) -> Calibration:
     """Calibrate gyro and magnetometer from one session with `method` (default: `NLS()`).
 
-    With `Options(split_check=True)` each half of the recording is also
-    calibrated alone and compared (`Calibration.consistency`, and a warning
-    when they disagree); that needs the least squares.
+    Either method goes through the same recording check and repairs, front end and
+    result check (`magyro.result.check`). With `Options(split_check=True)` each half of
+    the recording is also calibrated alone and compared (`Calibration.consistency`, and
+    a warning when they disagree).
     """
+    return calibrate_with_history(session, options, method)[0]
+
+
+def calibrate_with_history(session: Session, options: Options | None = None, method=None):
+    """(Calibration, the EKF's history or None): `calibrate`, keeping the filter's estimates over time when the
+    method has them. The calibration is the same, number for number, as `calibrate`'s."""
     from magyro.methods import run_method
     from magyro.progress import step
 
     options = options or Options()
     method = method or method_named("nls")
-    if options.split_check and method.name != "nls":
-        raise InputError("--split-check needs --method nls (it compares two least-squares solves)")
     step("checking the recording")
     session, recording = checked_recording(session, options)
-    cal = run_method(method, session, replace(options, split_check=False))
+    plain = replace(options, split_check=False)
+    if hasattr(method, "calibrate_with_history"):
+        cal, history = method.calibrate_with_history(session, plain)
+    else:
+        cal, history = run_method(method, session, plain), None
     step("checking that the result explains the recording")
     cal.recording = recording
     cal.warnings[:0] = [f"recording: {f.message}; {f.fix}" for f in recording.warnings if not f.repaired]
     check_the_result_explains_the_data(cal, session, options, method)
     if options.split_check:
         add_split_check(cal, session, options, method)
-    return cal
+    return cal, history
 
 
 def checked_recording(session: Session, options: Options):
@@ -70,35 +80,32 @@ def checked_recording(session: Session, options: Options):
     return repaired, recording
 
 
-MAX_TURNING_MISFIT = 1.5   # converged solves of either method stay within 1.12 (front.initial.turning_misfit_ratio)
-
-
 def check_the_result_explains_the_data(cal: Calibration, session: Session, options: Options, method) -> None:
-    """SolverError (exit 1) when the calibrated gyro predicts the field's turning far worse than the plain linear
-    fit does: then the method lost its way, whatever it reports about itself."""
-    from magyro.errors import SolverError
-    from magyro.front.initial import turning_misfit_ratio
+    """SolverError (exit 1) when the calibration does not explain the recording, warnings when it disagrees with
+    the rests (`magyro.result.check`, the same for every method)."""
     from magyro.front.prepare import moving_session
+    from magyro.result.check import check_result
 
-    moving = moving_session(session, options)[0]
-    ratio = turning_misfit_ratio(moving, cal.K, cal.eps_rad_s, cal.R, cal.h, cal.time_offset_s)
-    cal.solver.details["turning_misfit_ratio"] = ratio
-    if ratio > MAX_TURNING_MISFIT:
-        raise SolverError(
-            f"the {method.name} result does not explain the recording: its calibrated gyro predicts the field's "
-            f"turning {ratio:.1f}x worse than the plain linear fit (eq. 13) does, so it is not reported"
-            + ("; the least squares (--method nls) is the more robust method" if method.name != "nls" else ""))
+    check_result(cal, moving_session(session, options)[0], method.name)
 
 
 def add_split_check(cal: Calibration, session: Session, options: Options, method) -> None:
     """Add the split-half consistency report (and its warning) to `cal`."""
     from magyro.front.prepare import moving_session
-    from magyro.methods import calibrator
+    from magyro.methods import run_method
     from magyro.result import consistency
 
     moving = moving_session(session, options)[0]
     halves = replace(method, trajectory=False) if getattr(method, "trajectory", False) else method  # no attitudes kept
-    report = consistency.split_check(moving, cal, replace(options, split_check=False), calibrator(halves))
+
+    def calibrate_half(half: Session, half_options: Options) -> Calibration:   # a half passes the same result check
+        from magyro.result.check import check_result
+
+        result = run_method(halves, half, half_options)
+        check_result(result, half, method.name)
+        return result
+
+    report = consistency.split_check(moving, cal, replace(options, split_check=False), calibrate_half)
     cal.consistency = report
     warning = consistency.split_warning(report)
     if warning:
@@ -143,15 +150,11 @@ def solve_file(path, options: Options | None = None, method: str = "nls", method
     knobs = {**nls_knobs(method, method_knobs or {}), **({"trajectory": True} if trajectory is not None else {})}
     chosen = method_named(method, **knobs)
     options = options or Options()
-    if options.split_check and method != "nls":
-        raise InputError("--split-check needs --method nls (it compares two least-squares solves)")
     step(f"reading {Path(path).name}")
     session = load_session(path, gyro_unit=gyro_unit, mag_unit=mag_unit)
+    cal, hist = calibrate_with_history(session, options, chosen)   # the same flow with or without --history
     if wants_history:
-        cal, hist = chosen.calibrate_with_history(session, options)
         write_history(hist, history, history_plot, title=f"{Path(path).name}: EKF estimates, +/- 3 sigma")
-    else:
-        cal = calibrate(session, options, chosen)
     if output is not None:
         write_text_atomically(output, cal.to_json() + "\n")
     if trajectory is not None:

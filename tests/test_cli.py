@@ -68,7 +68,6 @@ def solved_dir(sim_dir, run_magyro):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--split-check", "--method", "ekf"], "--split-check needs --method nls"),
     (["--history", "h.parquet"], "--history and --history-plot need --method ekf"),
 ])
 def test_options_of_the_other_method_exit_2(args, message, sim_dir, run_magyro, assert_plain_failure):

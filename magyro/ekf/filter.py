@@ -128,6 +128,8 @@ class ErrorStateEKF:
         self._steps = 0
         self.history_stride = history_stride
         self._rows: list[tuple] = []
+        self.room = None           # a DisturbanceSensitivity (magyro.ekf.room) to record, when the room is counted
+        self.innovations = None    # a list to append (innovation, S) of every update to, when asked
 
     # ---- the nominal state as arrays
 
@@ -225,6 +227,8 @@ class ErrorStateEKF:
             [E[2], E[5], E[8], u1 * g[6], u1 * g[7], u1 * g[8], u2 * g[6], u2 * g[7], u2 * g[8], u3 * g[6], u3 * g[7], u3 * g[8], g[6], g[7], g[8]],
         ])
         P = self.P
+        if self.room is not None:
+            self.room.propagate(Fa)
         X = Fa @ P[:15]                              # rows 0:3 of F P (F is I below row 3; m, consider columns of F are 0)
         P[0:3, 3:] = X[:, 3:]
         P[3:, 0:3] = X[:, 3:].T
@@ -287,6 +291,10 @@ class ErrorStateEKF:
         nu = (v1, v2, v3)
         self.nis_sum += A * v1 * v1 + E * v2 * v2 + I * v3 * v3 + 2.0 * (Bs * v1 * v2 + Cs * v1 * v3 + F * v2 * v3)
         dx = (Wa @ nu).tolist()
+        if self.innovations is not None:
+            self.innovations.append((nu, S))
+        if self.room is not None:
+            self.room.update(self.t, Wa, H, np.array(self._C).reshape(3, 3))
         P[:N_STATE] -= Wa @ PHt.T
         if self.consider:
             P[N_STATE:, :N_STATE] = P[:N_STATE, N_STATE:].T

@@ -7,7 +7,8 @@
     2. step 1, the magnetometer: Gauss-Newton on the constant-norm condition,
        from the ellipsoid (`magyro.ekf.magnetometer`)
     3. the filter's prior: eq. (13) on the calibrated field (`magyro.ekf.prior`)
-    4. step 2, the error-state EKF fed the whole session in time order
+    4. step 2, the error-state EKF fed the whole session in time order, the magnetometer stamps shifted
+       by its lag (eq. 13's search) and its noise re-weighted from the innovations
        (`magyro.ekf.streaming`, `magyro.ekf.filter`)
     5. the result: the same Calibration as the joint least squares
        (solver.method = "ekf"), std from the final covariance of
@@ -30,15 +31,22 @@ from magyro.ekf.magnetometer import known_magnetometer, refine_magnetometer
 from magyro.ekf.prior import PRIOR_INFLATION, Initial, initial_estimate
 from magyro.ekf.streaming import StreamingCalibrator, run_filter
 from magyro.ekf.uncertainty import reported_covariance
-from magyro.errors import InputError
+from magyro.ekf.filter import N_STATE
+from magyro.ekf.room import (DisturbanceSensitivity, disturbance_covariance, measured_disturbance,
+                             step1_room_covariance)
+from magyro.errors import InputError, ObservabilityError, SolverError
+from magyro.front import ellipsoid
+from magyro.front.initial import with_time_offset
+from magyro.front.noise import integrated_autocorrelation_time
+from magyro.nls.diagnostics import rest_check
 from magyro.nls.information import predicted_std
 from magyro.observability.gate import accuracy_gate, needs_accuracy_check, unexcited_directions
 from magyro.front.prepare import Prepared, prepare
 from magyro.options import Options
 from magyro.result.calibration import Calibration
 from magyro.result.fit import FilterFit
-from magyro.result.parts import Excitation, NoiseReport, SolverReport
-from magyro.result.reported import qr_split, std_from_covariance
+from magyro.result.parts import Excitation, FieldDisturbance, NoiseReport, SolverReport
+from magyro.result.reported import axis_mapping_warning, qr_split, std_from_covariance
 from magyro.session import Session
 
 
@@ -49,9 +57,12 @@ class EKF:
     Noise levels, rest trimming and the observability gate are those of the
     shared front end (`magyro.front.prepare`: `Options.force`, the noise
     options and `trim_rests` apply; ObservabilityError when the motion does
-    not excite every parameter). A fixed `Options.time_offset_s`
-    (magnetometer lag) shifts the magnetometer stamps; the EKF does not
-    estimate the lag (`Options.estimate_time_offset` is ignored).
+    not excite every parameter). The magnetometer's lag is searched as the
+    least squares' start searches it (eq. 13) and shifts the magnetometer
+    stamps; `Options.estimate_time_offset=False` fixes it at
+    `Options.time_offset_s`. The magnetometer noise is re-weighted from the
+    filter's innovations, and the std counts the room's field disturbance
+    (`magyro.ekf.room`; `count_room=False`: the filter's own covariance).
 
     magnetometer=(R, h): take this magnetometer calibration as exact and skip
     step 1 (the paper's Table I simulation assumes a calibrated magnetometer).
@@ -70,6 +81,7 @@ class EKF:
     consider_magnetometer: bool = True
     history_rows: int = HISTORY_ROWS
     prior_inflation: float = PRIOR_INFLATION
+    count_room: bool = True                # the std counts the room's field disturbance (magyro.ekf.room)
 
     def calibrate(self, session: Session, options: Options | None = None) -> Calibration:
         """Calibrate gyro and magnetometer from one session (returns a `magyro.Calibration`)."""
@@ -83,40 +95,113 @@ class EKF:
         gate_warnings = (accuracy_gate(predicted_std(prep, options), options)   # the same gate as the NLS's
                          if needs_accuracy_check(prep.analysis) else [])
         s = prep.session
-        tau = float(options.time_offset_s or 0.0)
-        if tau:
-            s = replace(s, t_mag_s=s.t_mag_s - tau)
         if self.magnetometer is not None:
             ref = known_magnetometer(*self.magnetometer)
         else:
-            ref = refine_magnetometer(s.mag, prep.fit.R, prep.fit.h, prep.sigma_mag if self.mag_bias_correction else None)
+            ref = magnetometer_step(s, prep, self.mag_bias_correction)
+        tau = magnetometer_lag(s, ref, prep, options)
+        if tau:
+            s = replace(s, t_mag_s=s.t_mag_s - tau)
+        room = (measured_disturbance(s.t_mag_s, s.mag, ref) if self.magnetometer is None and self.count_room
+                else FieldDisturbance(0.0, 0.0))
+        if room.std_fraction > 0.0:   # step 1's std counts the room too, and reaches the gyro through the consider states
+            ref = replace(ref, covariance=ref.covariance + step1_room_covariance(s.t_mag_s, s.mag, ref, room))
         init = initial_estimate(s, ref, self.prior_inflation, unexcited_directions(prep.analysis))
         stride = max(1, int(math.ceil(len(s.t_mag_s) / max(self.history_rows - 2, 1))))
         cov_Rh = ref.covariance if (self.consider_magnetometer and self.magnetometer is None) else None
-        filt = StreamingCalibrator(ref.R, ref.h, init.K0, init.eps0, None, prep.gyro_density, prep.sigma_mag,
-                                   P0=init.P0, cov_Rh=cov_Rh, history_stride=stride)
+        sigma_mag = prep.sigma_mag
         t_filter = time.perf_counter()
-        run_filter(s, filt)
+        for n_pass in range(1, MAX_NOISE_PASSES + 1):
+            filt = StreamingCalibrator(ref.R, ref.h, init.K0, init.eps0, None, prep.gyro_density, sigma_mag,
+                                       P0=init.P0, cov_Rh=cov_Rh, history_stride=stride)
+            if room.std_fraction > 0.0:
+                filt.room = DisturbanceSensitivity(N_STATE)
+            filt.innovations = []
+            run_filter(s, filt)
+            if not filt.started or filt.mag_updates == 0:
+                raise InputError("the EKF got no magnetometer sample inside the gyro's time span")
+            factor = noise_factor(filt, options) if n_pass < MAX_NOISE_PASSES else None
+            if factor is None:
+                break
+            sigma_mag *= factor if n_pass == 1 else math.sqrt(factor)   # damped: the filter moves with its noise
         filter_s = time.perf_counter() - t_filter
-        if not filt.started or filt.mag_updates == 0:
-            raise InputError("the EKF got no magnetometer sample inside the gyro's time span")
         history = filt.history()
-        cal = assemble(filt, prep, init, filter_s, time.perf_counter() - t_start, tau)
+        omega = disturbance_covariance(filt.room, room) if filt.room is not None else None
+        filt.room = filt.innovations = None   # the recorded entries are large; the covariance is all that is kept
+        cal = assemble(filt, prep, init, filter_s, time.perf_counter() - t_start, tau, room, omega, sigma_mag)
         cal.warnings.extend(gate_warnings)
         return cal, history
 
 
+MAX_NOISE_PASSES = 4          # the filter runs again at most 3 times with the magnetometer noise re-weighted
+NOISE_RESCALE_TOLERANCE = 0.2   # ... when the innovations' effective scale is off by more than this (the NLS's)
+CHI2_3DOF_MEDIAN = 2.3660       # median of |e|^2 for a 3-vector of unit normals
+
+
+def noise_factor(filt: StreamingCalibrator, options: Options) -> float | None:
+    """The factor on the magnetometer noise std when the filter's innovations say it is off, else None.
+
+    The front end's level, from third differences when there is no rest, can be several times off (BROAD's
+    magnetometer at 286 Hz: 0.20 uT against 1.03 from its rests), and a field that wanders along the path adds
+    correlated model error. As the least squares re-weights its magnetometer noise from its residuals
+    (`magyro.nls.solve.magnetometer_noise_factor`), the factor is the robust scale of the whitened innovations
+    S^-1/2 nu (median of |e|^2 against its chi^2 median) times the square root of their integrated
+    autocorrelation time, so correlated error counts as fewer independent samples. Passes after the first
+    move half-way (the square root of the factor): a filter given noisier readings leans on its gyro, and its
+    innovations then correlate by its own dynamics, so the factor overshoots (BROAD trial 09: 1.08 uT from
+    its rests, 4.96 after one pass, 13 after three). A level the user gave (--mag-noise) is kept.
+    """
+    if options.mag_noise_std is not None or not filt.innovations:
+        return None
+    nu = np.array([v for v, _ in filt.innovations])
+    lam, V = np.linalg.eigh(np.array([S for _, S in filt.innovations]))     # S^-1/2 nu, S symmetric
+    e = np.einsum("kji,kj->ki", V, nu) / np.sqrt(np.maximum(lam, 1e-300))
+    scale = math.sqrt(float(np.median(np.sum(e * e, axis=1))) / CHI2_3DOF_MEDIAN)
+    factor = scale * math.sqrt(integrated_autocorrelation_time(e))
+    return factor if abs(factor - 1.0) > NOISE_RESCALE_TOLERANCE else None
+
+
+def magnetometer_step(s: Session, prep: Prepared, bias_correction: bool):
+    """Step 1 from the ellipsoid; a cloud that pins no unique magnetometer calibration is too little motion
+    (exit 3), never a crash."""
+    try:
+        ref = refine_magnetometer(s.mag, prep.fit.R, prep.fit.h, prep.sigma_mag if bias_correction else None)
+    except np.linalg.LinAlgError:
+        ref = None
+    if ref is None or not (np.all(np.isfinite(ref.R)) and np.all(np.isfinite(ref.covariance))):
+        raise ObservabilityError(
+            "the magnetometer's field directions do not pin down its soft/hard iron (step 1's normal equations are "
+            "singular: the readings cover too little of the sphere); turn the device through large angles about "
+            "all three of its axes so that the field sweeps much of the sphere", prep.analysis)
+    return ref
+
+
+def magnetometer_lag(s: Session, ref, prep: Prepared, options: Options) -> float:
+    """The magnetometer's lag behind the gyro, s: searched on eq. (13) as the least squares starts from
+    (`magyro.front.initial.with_time_offset`; 10-33 ms on real devices, where 3-10 deg of attitude per update at
+    300 deg/s biased the filter by degrees per second), or `Options.time_offset_s` when fixed
+    (--no-time-offset) or when the motion does not excite every parameter."""
+    if not (options.estimate_time_offset and prep.analysis.full_rank):
+        return float(options.time_offset_s or 0.0)
+    field_m = ellipsoid.calibrated_field(ref.R, ref.h, s.mag)
+    return float(with_time_offset(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, field_m).time_offset_s)
+
+
 def assemble(filt: StreamingCalibrator, prep: Prepared, init: Initial, filter_s: float, total_s: float,
-             tau: float) -> Calibration:
-    """The Calibration of the filter's final state, with the same fields as the joint least squares'."""
+             tau: float, room: FieldDisturbance, omega: np.ndarray | None, sigma_mag: float) -> Calibration:
+    """The Calibration of the filter's final state, with the same fields as the joint least squares'; its std
+    counts the room's field disturbance (`magyro.ekf.room`), the filter's own beside it as `std_white`."""
     K, eps, m = filt.K.copy(), filt.eps.copy(), filt.m.copy()
-    C, Kg = qr_split(K)
+    C, Kg = proper_split(K)
     ref = init.refinement
-    std = std_from_covariance(reported_covariance(K, eps, ref.R, ref.h, m, filt.input_covariance(ref.covariance), C))
+    cov_white = filt.input_covariance(ref.covariance)
+    std_white = std_from_covariance(reported_covariance(K, eps, ref.R, ref.h, m, cov_white, C))
+    std = std_white if omega is None else std_from_covariance(
+        reported_covariance(K, eps, ref.R, ref.h, m, cov_white + room_input_covariance(omega, filt.B), C))
     n_samples = filt.gyro_samples + filt.mag_updates
     return Calibration(
         K_g=Kg, bias_rad_s=C.T @ eps, K=K, eps_rad_s=eps, C_b_m=C, R=ref.R, h=ref.h,
-        mag_unit=prep.session.mag_unit, field_i=m, std=std,
+        mag_unit=prep.session.mag_unit, field_i=m, std=std, std_white=None if omega is None else std_white,
         observability=Excitation.of(prep.analysis),
         solver=SolverReport("ekf", "done", int(n_samples), float(filter_s), float(total_s), {
             "gyro_samples": int(filt.gyro_samples), "mag_updates": int(filt.mag_updates),
@@ -125,8 +210,55 @@ def assemble(filt: StreamingCalibrator, prep: Prepared, init: Initial, filter_s:
             "state_dimension": int(filt.n), "consider_magnetometer": bool(filt.consider),
             "magnetometer_newton_iterations": int(ref.iterations),
             "magnetometer_bias_corrected": bool(ref.bias_corrected)}),
-        noise=NoiseReport(prep.gyro_density, prep.sigma_mag),
+        noise=NoiseReport(prep.gyro_density, sigma_mag, prep.sigma_mag if sigma_mag != prep.sigma_mag else None,
+                          prep.noise_source,
+                          room if ref.covariance is not None and room.correlation_time_s > 0 else None,
+                          None, *level_sources(prep, sigma_mag)),
         fit=FilterFit(float(ref.rms_norm_error), float(ref.rms_norm_error_initial),
                       float(filt.nis_sum / max(filt.mag_updates, 1)), tuple(np.sqrt(np.diag(init.P0)).tolist())),
         time_offset_s=tau,
+        rests=rest_check(prep.rests, Kg, C.T @ eps),
+        warnings=[w for w in (axis_mapping_warning(C), guessed_gyro_level_warning(prep)) if w],
     )
+
+
+def proper_split(K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`qr_split`, except that a K of negative determinant is the filter's failure to report (exit 1), not a
+    diagnosis: the filter cannot tell a mirrored gyro from having lost its way; the least squares can."""
+    if np.linalg.det(K) < 0:
+        raise SolverError(
+            "the EKF ended with a gyro matrix K of negative determinant (its C_b_m would be a mirror image), so "
+            "its result is not reported: the filter cannot tell a mirrored gyro axis from having lost its way; "
+            "solve with the least squares (--method nls), which can")
+    return qr_split(K)
+
+
+def room_input_covariance(omega: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """The disturbance's Omega over the error state's [vec K, eps, m^i tangent] as a 24x24 covariance of
+    [vec K, eps, R upper, h, m_i] (`StreamingCalibrator.input_covariance`'s layout)."""
+    T = np.zeros((24, 14))
+    T[:12, :12] = np.eye(12)
+    T[21:, 12:] = B
+    return T @ omega @ T.T
+
+
+def level_sources(prep: Prepared, sigma_mag: float) -> tuple[str, str]:
+    """(gyro, magnetometer): where each level came from; the magnetometer's, re-weighted from the filter's
+    innovations, is estimated by the solve."""
+    from magyro.front import noise
+
+    levels = prep.levels
+    if levels is None:
+        return "", ""
+    return levels.gyro_source, noise.ESTIMATED if sigma_mag != prep.sigma_mag else levels.mag_source
+
+
+def guessed_gyro_level_warning(prep: Prepared) -> str | None:
+    """The filter cannot measure a gyro level it was given as a guess (no rest, differences still falling)."""
+    from magyro.front import noise
+
+    if prep.levels is None or prep.levels.gyro_source != noise.GUESS:
+        return None
+    return ("the gyro noise density is a guess: the recording has no rest at either end and the EKF cannot measure "
+            "it; the std rests on it. Start and end the recording with 2 s of rest, or pass --gyro-noise "
+            "(--method nls estimates it)")

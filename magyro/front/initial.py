@@ -119,14 +119,16 @@ def turning_residual(t_gyro_s, gyro_rad_s, t_mag_s, field_m, K, eps, time_offset
     return float(np.sqrt(np.mean((int_M.reshape(-1, 12) @ theta - dm.reshape(-1)) ** 2)))
 
 
-def turning_misfit_ratio(session, K, eps, R, h, time_offset_s: float = 0.0) -> float:
+def turning_misfit_ratio(session, K, eps, R, h, time_offset_s: float = 0.0, window_s: float = DEFAULT_WINDOW_S) -> float:
     """How much worse a calibration predicts the field's turning than the best linear fit (1 = as well).
 
     On BROAD trials 02 and 07 and simulated sessions every converged solve
     (both methods) stays within 1.12; a result that does not explain the
     recording (an EKF that lost track: 3.6 on fast shaking) is far above.
+    Longer windows (`window_s`) let a wrong scale or bias grow above the
+    magnetometer's noise (`magyro.result.check`).
     """
     field_m = calibrated_field(np.asarray(R), h, session.mag)
     args = (session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field_m)
-    best = linear_gyro_estimate(*args, time_offset_s=time_offset_s).residual
-    return turning_residual(*args, K, eps, time_offset_s) / best if best > 0 else 1.0
+    best = linear_gyro_estimate(*args, window_s=window_s, time_offset_s=time_offset_s).residual
+    return turning_residual(*args, K, eps, time_offset_s, window_s) / best if best > 0 else 1.0

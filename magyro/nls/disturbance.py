@@ -77,7 +77,15 @@ def measured_disturbance(problem: JointProblem, theta, g, info_inv: np.ndarray, 
     """sigma and T from the lag >= 1 autocovariance of the windowed field magnitude, less the part that the
     calibration's own (R, h) uncertainty explains (see the module docstring)."""
     e, G = magnitude_and_gradient(problem, theta, g, session.mag)
-    window = np.floor((session.t_mag_s - session.t_mag_s[0]) / window_s).astype(int)
+    cov = info_inv[np.ix_(MAGNITUDE_PARAMETERS, MAGNITUDE_PARAMETERS)]
+    return disturbance_from_magnitude(session.t_mag_s, e, G, cov, window_s)
+
+
+def disturbance_from_magnitude(t_mag_s: np.ndarray, e: np.ndarray, G: np.ndarray, cov: np.ndarray,
+                               window_s: float = WINDOW_S) -> FieldDisturbance:
+    """sigma and T from the calibrated field's magnitude less one, `e` per sample, its gradient `G` with respect to
+    the magnetometer's corrections and their covariance `cov` (either method's parametrisation)."""
+    window = np.floor((t_mag_s - t_mag_s[0]) / window_s).astype(int)
     count = np.bincount(window)
     held = count > 0
     e_w = (np.bincount(window, e) / np.maximum(count, 1))[held]
@@ -85,7 +93,7 @@ def measured_disturbance(problem: JointProblem, theta, g, info_inv: np.ndarray, 
     e_w, G_w = e_w - e_w.mean(), G_w - G_w.mean(axis=0)
     n = len(e_w)
     lags = np.arange(1, max(2, min(MAX_LAG_WINDOWS, n // 4)))
-    P = G_w @ info_inv[np.ix_(MAGNITUDE_PARAMETERS, MAGNITUDE_PARAMETERS)]
+    P = G_w @ cov
     excess = np.array([np.mean(e_w[k:] * e_w[: n - k]) - np.mean(np.sum(P[k:] * G_w[: n - k], axis=1)) for k in lags])
     if len(excess) == 0 or excess[0] <= 0:
         return FieldDisturbance(0.0, window_s)
