@@ -39,10 +39,12 @@ class Solved:
 
 SHIPPED_BROAD_02 = Path(__file__).resolve().parents[1] / "data" / "broad-02.parquet"
 
-# The test files that cost the most (CPU s of the whole file, measured 2026-12-02 on the 2-core machine), run
-# first so that no worker starts a long file when the other is nearly done; the rest follow in their usual order.
-HEAVY_FILES = ("test_plan.py", "test_report.py", "test_trajectory.py", "test_real_data.py", "test_watch.py",
-               "test_montecarlo.py", "test_consistency.py", "test_cli_methods.py", "test_cli.py")
+# The test files that take longest (wall s of the whole file on one of two workers: 507, 407, 328, 316, 248,
+# 245, 244, 214, 196, 145, 126, 122 on the busy 2-core machine, 2026-12-02), run first so that no worker starts a
+# long file when the other is nearly done; the rest follow in their usual order.
+HEAVY_FILES = ("test_corpus.py", "test_plan.py", "test_batch.py", "test_report.py", "test_executor.py",
+               "test_cli_methods.py", "test_trajectory.py", "test_field_disturbance.py", "test_real_data.py",
+               "test_examples.py", "test_cli.py", "test_watch.py")
 
 
 def pytest_collection_modifyitems(config, items):
