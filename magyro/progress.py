@@ -8,16 +8,19 @@ installs a reporter for a block of work:
 
 `magyro solve`, `check`, `observe`, `report` and the importers use `showing()`, which on a
 terminal keeps one live line on stderr (a spinner, the step, the seconds so far; rich when it is
-installed, a plain line otherwise) and shows nothing when stderr is not a terminal or with -q.
+installed, a plain line otherwise) and shows nothing when stderr is not a terminal or with -q; with
+MAGYRO_PROGRESS=lines in the environment each step is its own line on stderr ("magyro step: ..."), for logs.
 """
 from __future__ import annotations
 
 import contextlib
 import contextvars
+import os
 import sys
 import time
 from typing import Callable
 
+LINES_VARIABLE = "MAGYRO_PROGRESS"   # =lines: each step as its own stderr line, terminal or not (logs, CI)
 _reporter: contextvars.ContextVar[Callable[[str], None] | None] = contextvars.ContextVar("magyro_progress", default=None)
 
 
@@ -42,6 +45,10 @@ def reporting(reporter: Callable[[str], None] | None):
 def showing(enabled: bool = True, stream=None):
     """The steps of the block as one live line on `stream` (stderr), on a terminal only."""
     stream = stream or sys.stderr
+    if enabled and os.environ.get(LINES_VARIABLE) == "lines":     # a log's view: every step its own line
+        with reporting(lambda text: print(f"magyro step: {text}", file=stream, flush=True)):
+            yield
+        return
     if not (enabled and hasattr(stream, "isatty") and stream.isatty()):
         with reporting(None):
             yield

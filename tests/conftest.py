@@ -133,9 +133,9 @@ def magyro_command() -> list[str]:
 def run_magyro():
     """run_magyro(*args, cwd=None) -> CompletedProcess (text, captured)."""
 
-    def run(*args, cwd=None, timeout=300):
+    def run(*args, cwd=None, timeout=300, env=None):
         return subprocess.run([*magyro_command(), *map(str, args)], capture_output=True, text=True,
-                              cwd=cwd, timeout=timeout)
+                              cwd=cwd, timeout=timeout, env=None if env is None else {**os.environ, **env})
 
     return run
 
