@@ -76,6 +76,6 @@ def test_fast_hand_scale_lands_within_its_std(fast_hand):
     truth, cal = fast_hand
     K_true = np.array(truth["gyro"]["K_g"])
     z = (np.diag(cal.K_g) - np.diag(K_true)) / np.diag(np.array(cal.std.K_g))
-    assert np.max(np.abs(z)) < 3.0, z       # a rate linear between samples put these at +6..+10 std
+    assert np.max(np.abs(z)) < 3.0, z       # a rate linear between samples put these at +8..+40 std
     z_b = (cal.bias_deg_s - np.array(truth["gyro"]["bias_deg_s"])) / np.array(cal.std.bias_deg_s)
     assert np.max(np.abs(z_b)) < 3.0, z_b
