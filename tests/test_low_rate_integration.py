@@ -1,9 +1,9 @@
-"""A gyro logged slowly (a phone's 28 Hz) and a hand's motion: the rate integrated to fourth order.
+"""A gyro logged slowly (a phone's 28 Hz) and a hand's motion: the rate integrated to high order.
 
 Taken as linear between samples, a rate of frequency f sampled at fs integrates short by about
 (2 pi f / fs)^2 / 12, which biased the gyro scale of a 28 Hz phone turned by hand up to 1.5 Hz by
-+0.6 to 0.8 % (about 10 std). `fourth_order_samples` pre-filters the samples so the grid's trapezoid is
-fourth order; next to a hole or a jittered stamp the samples stay raw.
++0.6 to 0.8 % (about 10 std). `high_order_samples` pre-filters the samples so the grid's trapezoid is
+of high order; next to a hole or a jittered stamp the samples stay raw.
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from magyro.nls.grid import build_grid
-from magyro.nls.gyro_samples import evenly_spaced_interior, fourth_order_samples
+from magyro.nls.gyro_samples import FOURTH_ORDER, SIXTH_ORDER, evenly_spaced_interior, filter_widths, high_order_samples
 from magyro.nls.run import calibrate_nls
 from magyro.options import Options
 from magyro.studies.scenario import load_problem
@@ -28,15 +28,15 @@ def step_errors(t, w, f_hz):
     return 0.5 * np.diff(t) * (w[1:] + w[:-1]) - exact
 
 
-def test_filtered_trapezoid_is_fourth_order_at_phone_rates():
+def test_filtered_trapezoid_is_of_high_order_at_phone_rates():
     t = np.arange(205) / 28.0                       # 28 Hz, about 7.3 s
     f_hz = 1.5                                      # a quick hand
     w = np.sin(2 * np.pi * f_hz * t)[:, None] * np.ones(3)
-    raw = step_errors(t, w[:, 0], f_hz)[1:-1]       # steps between two filtered samples
-    filtered = step_errors(t, fourth_order_samples(t, w)[:, 0], f_hz)[1:-1]
+    raw = step_errors(t, w[:, 0], f_hz)[2:-2]       # steps between two five-tap samples
+    filtered = step_errors(t, high_order_samples(t, w)[:, 0], f_hz)[2:-2]
     step_angle = 2 * np.pi * f_hz / 28.0 / (2 * np.pi * f_hz)   # the largest step integral, h
     assert np.max(np.abs(raw)) / step_angle > 0.005  # linear in time: (2 pi f h)^2 / 12 = 0.9 % short
-    assert np.max(np.abs(filtered)) < 0.04 * np.max(np.abs(raw))   # 1/50 of it: fourth order
+    assert np.max(np.abs(filtered)) < 2e-3 * np.max(np.abs(raw))   # 1/2000 of it: sixth order
 
 
 def test_holes_and_jittered_stamps_stay_raw():
@@ -44,12 +44,15 @@ def test_holes_and_jittered_stamps_stay_raw():
     t[20:] += 0.5                       # a hole between samples 19 and 20
     t[30] += 0.1 / 28.0                 # one stamp 10 % late
     w = np.random.default_rng(0).standard_normal((40, 3))
-    out = fourth_order_samples(t, w)
+    out = high_order_samples(t, w)
     raw = ~evenly_spaced_interior(t)
     assert set(np.flatnonzero(raw)) == {0, 19, 20, 29, 30, 31, 39}
     np.testing.assert_array_equal(out[raw], w[raw])
-    k = 10
-    np.testing.assert_allclose(out[k], (-w[k - 1] + 14 * w[k] - w[k + 1]) / 12)
+    widths = filter_widths(t)
+    assert list(widths[[1, 2, 18, 21, 28, 32, 38]]) == [3, 5, 3, 3, 3, 3, 3]
+    np.testing.assert_allclose(out[10], SIXTH_ORDER @ w[8:13])
+    np.testing.assert_allclose(out[18], FOURTH_ORDER @ w[17:20])
+    np.testing.assert_allclose(out[18], w[18] - (w[19] - 2 * w[18] + w[17]) / 12)
 
 
 def test_grid_integrates_the_filtered_samples():
@@ -58,7 +61,7 @@ def test_grid_integrates_the_filtered_samples():
     w = np.sin(2 * np.pi * 1.3 * t_gyro)[:, None] * np.array([1.0, -0.5, 2.0])
     grid = build_grid(t_gyro, w, t_mag)
     total = np.einsum("isl,islk->k", grid.dt_s, 0.5 * (grid.gyro_a + grid.gyro_b))
-    np.testing.assert_allclose(total, np.trapezoid(fourth_order_samples(t_gyro, w), t_gyro, axis=0), rtol=1e-12)
+    np.testing.assert_allclose(total, np.trapezoid(high_order_samples(t_gyro, w), t_gyro, axis=0), rtol=1e-12)
 
 
 @pytest.fixture(scope="module")
