@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from magyro.nls.grid import build_grid
-from magyro.nls.gyro_samples import FOURTH_ORDER, SIXTH_ORDER, evenly_spaced_interior, filter_widths, high_order_samples
+from magyro.nls.gyro_samples import (FOURTH_ORDER, SIXTH_ORDER, evenly_spaced_interior, filter_widths,
+                                     high_order_samples)
 from magyro.nls.run import calibrate_nls
 from magyro.options import Options
 from magyro.studies.scenario import load_problem
@@ -34,8 +35,8 @@ def test_filtered_trapezoid_is_of_high_order_at_phone_rates():
     w = np.sin(2 * np.pi * f_hz * t)[:, None] * np.ones(3)
     raw = step_errors(t, w[:, 0], f_hz)[2:-2]       # steps between two five-tap samples
     filtered = step_errors(t, high_order_samples(t, w)[:, 0], f_hz)[2:-2]
-    step_angle = 2 * np.pi * f_hz / 28.0 / (2 * np.pi * f_hz)   # the largest step integral, h
-    assert np.max(np.abs(raw)) / step_angle > 0.005  # linear in time: (2 pi f h)^2 / 12 = 0.9 % short
+    h = 1 / 28.0                                    # the largest step integral (unit rate)
+    assert np.max(np.abs(raw)) / h > 0.005          # linear in time: (2 pi f h)^2 / 12 = 0.9 % short
     assert np.max(np.abs(filtered)) < 2e-3 * np.max(np.abs(raw))   # 1/2000 of it: sixth order
 
 
@@ -49,7 +50,7 @@ def test_holes_and_jittered_stamps_stay_raw():
     assert set(np.flatnonzero(raw)) == {0, 19, 20, 29, 30, 31, 39}
     np.testing.assert_array_equal(out[raw], w[raw])
     widths = filter_widths(t)
-    assert list(widths[[1, 2, 18, 21, 28, 32, 38]]) == [3, 5, 3, 3, 3, 3, 3]
+    assert list(widths[[1, 2, 18, 21, 28, 32, 38]]) == [3, 5, 3, 3, 3, 3, 3]   # next to them: three taps
     np.testing.assert_allclose(out[10], SIXTH_ORDER @ w[8:13])
     np.testing.assert_allclose(out[18], FOURTH_ORDER @ w[17:20])
     np.testing.assert_allclose(out[18], w[18] - (w[19] - 2 * w[18] + w[17]) / 12)
