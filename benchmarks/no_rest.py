@@ -21,7 +21,8 @@ from magyro.nls.run import calibrate_nls
 from magyro.studies.scenario import load_problem
 from magyro.studies.simulate import simulate
 
-PROBLEMS = ("problems/phone-no-rest.toml", "problems/paper-table1-hand.toml")
+PROBLEMS = ("problems/phone-no-rest.toml", "problems/paper-table1-hand.toml",
+            "problems/phone-fast-hand.toml")   # hand motion up to 1.5 Hz at 28 Hz: the gyro integral's order
 PARAMETERS = [f"K_g[{i},{j}]" for i in range(3) for j in range(i, 3)] + ["bias x", "bias y", "bias z",
                                                                         "roll", "pitch", "yaw"]
 

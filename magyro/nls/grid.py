@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from magyro.nls.gyro_samples import high_order_samples
 from magyro.session import hole_spans_s, overlaps_a_hole
 
 @dataclass(frozen=True)
@@ -31,8 +32,8 @@ class Grid:
     t_node_s: np.ndarray         # (N,)
     mag_index: np.ndarray        # (N-1, stride) magnetometer sample at each segment start (the one before, if none)
     dt_s: np.ndarray             # (N-1, stride, L)
-    gyro_a: np.ndarray           # (N-1, stride, L, 3) raw gyro at each sub-step start
-    gyro_b: np.ndarray           # (N-1, stride, L, 3) raw gyro at each sub-step end
+    gyro_a: np.ndarray           # (N-1, stride, L, 3) gyro at each sub-step start (`high_order_samples`)
+    gyro_b: np.ndarray           # (N-1, stride, L, 3) gyro at each sub-step end
     last_mag_index: int          # magnetometer sample at the last node
     mag_weight: np.ndarray       # (N-1, stride) 1 where a segment starts at a sample, 0 in a gap
     gyro_linked: np.ndarray      # (N-1,) False where the interval overlaps a hole in the gyro record
@@ -137,7 +138,8 @@ def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
     seg_idx = idx_bound[: n_int * stride + 1]
     inside = t_gyro_s[(t_gyro_s > t_seg[0]) & (t_gyro_s < t_seg[-1])]
     t_all = np.union1d(inside, t_seg)
-    y_all = np.column_stack([np.interp(t_all, t_gyro_s, gyro_rad_s[:, i]) for i in range(3)])
+    filtered = high_order_samples(t_gyro_s, gyro_rad_s)   # the trapezoid below then of high order
+    y_all = np.column_stack([np.interp(t_all, t_gyro_s, filtered[:, i]) for i in range(3)])
     seg_of_step = np.searchsorted(t_seg, t_all[:-1], side="right") - 1
     first = np.searchsorted(seg_of_step, np.arange(len(t_seg) - 1), side="left")
     pos = np.arange(len(t_all) - 1) - first[seg_of_step]
