@@ -13,6 +13,7 @@ import io
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -209,6 +210,22 @@ def stream_command(problem: str, speed: float) -> list[str]:
     return cli_prefix() + ["simulate", problem, "--stream", "--speed", str(speed)]
 
 
+def wait_for_session_time(watcher, t_s: float, timeout_s: float = 120.0) -> str:
+    """Read the watcher's status lines until one shows the recording at t_s or later (whatever the machine's load);
+    returns the lines read."""
+    deadline = time.monotonic() + timeout_s
+    seen = []
+    while time.monotonic() < deadline:
+        line = watcher.stderr.readline()
+        if not line:
+            break
+        seen.append(line)
+        found = re.search(r"\bt\s+([0-9.]+) s", line)
+        if found and float(found.group(1)) >= t_s:
+            return "".join(seen)
+    raise AssertionError("the watcher showed no session time of %g s: %s" % (t_s, "".join(seen)))
+
+
 def env():
     return {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
 
@@ -248,10 +265,11 @@ def test_a_signal_mid_stream_still_saves_the_session_whole(tmp_path, sig):
                                stderr=subprocess.PIPE, text=True, env=env())
     producer.stdout.close()
     try:
-        time.sleep(3.0)                     # about 20 s of the 60 s recording (after the start-up)
+        seen = wait_for_session_time(watcher, 5.0)   # samples have arrived, the 60 s recording is not over
         assert watcher.poll() is None
         watcher.send_signal(sig)
-        _, err = watcher.communicate(timeout=30)
+        _, rest = watcher.communicate(timeout=30)
+        err = seen + rest
     finally:
         producer.kill()
         producer.wait()
