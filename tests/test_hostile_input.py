@@ -46,7 +46,15 @@ def refused(args, pattern: str, cwd: Path, code: int = 2) -> str:
     """Run a command that must be refused: its exit code, ONE message matching `pattern`, nothing written in
     `cwd`, no input changed. Returns the message."""
     before = snapshot(cwd)
-    exit_code, out, err = run(*args, cwd=cwd)
+    saved = os.environ.get("MAGYRO_PROGRESS")
+    os.environ["MAGYRO_PROGRESS"] = "lines"     # every step of work a stderr line: one line is the refusal alone
+    try:
+        exit_code, out, err = run(*args, cwd=cwd)
+    finally:
+        if saved is None:
+            del os.environ["MAGYRO_PROGRESS"]
+        else:
+            os.environ["MAGYRO_PROGRESS"] = saved
     lines = [line for line in err.strip().splitlines() if not line.startswith("report: ")]   # its progress lines
     assert exit_code == code, (exit_code, out, err)
     assert len(lines) == 1 and lines[0].startswith("magyro: "), err
@@ -298,9 +306,7 @@ def test_a_problem_name_cannot_write_outside_the_fleet_folder(tmp_path, name):
 ])
 def test_simulated_sizes_are_capped_and_the_refusal_names_the_cap(tmp_path, key, value, cap):
     (tmp_path / "big.toml").write_text(problem_text(**{key: value}))
-    start = time.perf_counter()
-    refused(["simulate", "big.toml", "-o", "big.parquet"], cap, tmp_path)
-    assert time.perf_counter() - start < 5.0
+    refused(["simulate", "big.toml", "-o", "big.parquet"], cap, tmp_path)   # before any sample is made
 
 
 @pytest.mark.parametrize("what", ["problem", "limits"])
@@ -347,10 +353,8 @@ def test_batch_refuses_an_input_named_like_its_summary_before_any_work(tmp_path)
 def test_batch_refuses_an_output_that_is_a_folder_before_solving(tmp_path, folder_at):
     shutil.copy(BROAD_02, tmp_path / "s.parquet")
     (tmp_path / "out" / folder_at).mkdir(parents=True)
-    start = time.perf_counter()
     refused(["batch", "s.parquet", "-o", "out"], rf"cannot write the output out/{re.escape(folder_at)}: it is a folder",
-            tmp_path)
-    assert time.perf_counter() - start < 10.0     # no device was solved
+            tmp_path)     # one stderr line: no device was solved (each would be a progress line)
 
 
 def test_batch_names_a_manifest_line_that_is_not_utf8(tmp_path):

@@ -346,7 +346,9 @@ def test_the_report_is_plain_json_with_its_schema(b02):
 def test_check_and_repair_take_a_small_share_of_a_solve(b02):
     repair_recording(b02)
     best = min(_timed(lambda: repair_recording(b02)) for _ in range(5))
-    assert best < 0.25, best     # a solve of this trial takes 2.5-25 s (idle to loaded); typically 40-120 ms
+    # typically 40-220 ms, the best of 5 (a solve of this trial takes 2.5-25 s, idle to loaded); this guards against an
+    # order of magnitude, the 10 % share is measured by benchmarks/bench_recording_check.py on a quiet machine
+    assert best < 1.0, best
 
 
 def _timed(job) -> float:
