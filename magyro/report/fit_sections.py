@@ -152,7 +152,8 @@ def split_pair(check, name: str) -> str:
     scale, unit = ((1e6, "ppm") if name in ("K_g[0,0]", "K_g[1,1]", "K_g[2,2]") else
                    (float(np.rad2deg(1.0)), "deg") if name.startswith("K_g") else
                    (1.0, "deg" if name.startswith("misalignment") else "deg/s"))
-    return (f"{SPLIT_LABELS.get(name, name)} (split-half ±{num(p['split_std'] * scale, 2)} {unit} against the "
+    label = SPLIT_LABELS.get(name, name).replace("misalign.", "misalignment")   # no '. ' inside a sentence
+    return (f"{label} (split-half ±{num(p['split_std'] * scale, 2)} {unit} against the "
             f"reported ±{num(p['reported_std'] * scale, 2)} {unit})")
 
 
@@ -176,8 +177,8 @@ def split_section(check, computed_here: bool, why_not: str | None = None) -> Sec
                     "trusted.")
         caveat = ""
     elif agree:
-        sentence = (f"The two halves of the recording ({spans}) agree within their own std (RMS z {check.rms_z:.2f}, "
-                    f"largest |z| {check.max_abs_z:.1f}), but they differ by {under:.1f}× the reported one-sigma on "
+        sentence = (f"The two halves of the recording ({spans}) agree within their own std (the RMS z is "
+                    f"{check.rms_z:.2f}, the largest |z| {check.max_abs_z:.1f}), but they differ by {under:.1f}× the reported one-sigma on "
                     f"{split_pair(check, under_name)}: the reported one-sigma understates the error, and the "
                     "split-half one is the more honest.")
         caveat = (f"the halves differ by {under:.1f}× the reported one-sigma on {split_pair(check, under_name)}, so "
