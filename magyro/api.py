@@ -106,11 +106,14 @@ def add_split_check(cal: Calibration, session: Session, options: Options, method
 
 
 def observe(session: Session, options: Options | None = None, targets=None, method=None):
-    """The excitation report of `magyro observe`: rank, weak directions, coverage, predicted accuracy; no solve."""
+    """The excitation report of `magyro observe`: rank, weak directions, coverage, predicted accuracy; no solve.
+    `targets`: a `magyro.targets.Targets`, a targets TOML path, a 4-tuple, or None (the defaults)."""
     from magyro.observability import observe as excitation_report
 
     from magyro.progress import step
+    from magyro.targets import targets_from
 
+    targets = targets_from(targets)
     options = options or Options()
     step("checking the recording")
     session, recording = checked_recording(session, options)
