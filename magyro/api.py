@@ -113,11 +113,14 @@ def add_split_check(cal: Calibration, session: Session, options: Options, method
 
 
 def observe(session: Session, options: Options | None = None, targets=None, method=None):
-    """The excitation report of `magyro observe`: rank, weak directions, coverage, predicted accuracy; no solve."""
+    """The excitation report of `magyro observe`: rank, weak directions, coverage, predicted accuracy; no solve.
+    `targets`: a `magyro.targets.Targets`, a targets TOML path, a 4-tuple, or None (the defaults)."""
     from magyro.observability import observe as excitation_report
 
     from magyro.progress import step
+    from magyro.targets import targets_from
 
+    targets = targets_from(targets)
     options = options or Options()
     step("checking the recording")
     session, recording = checked_recording(session, options)
@@ -181,18 +184,18 @@ def observe_file(path, options: Options | None = None, targets=None, *, gyro_uni
                  mag_unit: str | None = None, output=None, plot=None):
     """`magyro observe`: load a session file, report on its excitation, write the JSON and the figure when asked.
 
-    `targets` is a `Targets` or the tuple (scale ppm, non-orthogonality deg, bias deg/s, misalignment deg).
+    `targets` is a `Targets`, the path of a targets TOML file (`magyro.targets.load_targets`), or the tuple
+    (scale ppm, non-orthogonality deg, bias deg/s, misalignment deg); None: the default targets.
     """
     from magyro.io import check_outputs
     check_outputs([path], [output, plot])  # before any work: no input overwritten, all writable
     from magyro.io import load_session, write_text_atomically
-    from magyro.observability import Targets
     from magyro.observability.plot import plot_report, require_matplotlib
+    from magyro.targets import targets_from
 
     if plot is not None:
         require_matplotlib()  # fail before any work or output
-    if targets is not None and not isinstance(targets, Targets):
-        targets = Targets(*targets)
+    targets = targets_from(targets)
     session = load_session(path, gyro_unit=gyro_unit, mag_unit=mag_unit)
     report = observe(session, options, targets)
     if output is not None:

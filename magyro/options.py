@@ -12,7 +12,9 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class StdBounds:
-    """The largest one-sigma, predicted before the solve, at which a calibration is still worth having.
+    """The refusal bound: the largest one-sigma, predicted before the solve, at which a calibration is still worth
+    having. Not the accuracy targets (magyro.targets, 10-50x stricter: what a user asks for); docs/spec.md
+    section 6 sets the two side by side.
 
     A motion that excites every parameter, but too weakly, is refused with the
     numbers (exit 3) instead of failing later or reporting a meaningless result;
@@ -69,7 +71,7 @@ class Options:
     estimate_time_offset: bool = True       # the magnetometer's lag behind the gyro, estimated (NLS) ...
     time_offset_s: float = 0.0              # ... from this start, or fixed at it (the EKF shifts the stamps by it)
     split_check: bool = False               # also calibrate each half alone and compare (magyro.result.consistency)
-    max_std: StdBounds = StdBounds()        # the predicted accuracy the gate asks for (force: solve anyway)
+    max_std: StdBounds = StdBounds()        # the refusal bound: the gate refuses above it (force: solve anyway)
     repairs: Repairs = Repairs()            # what the recording check may repair (restamps, held, saturation, spikes)
 
     @classmethod

@@ -188,3 +188,38 @@ def test_command_line_writes_the_page_and_refuses_bad_input(built, tmp_path, run
     missing = tmp_path / "none.html"
     message = assert_plain_failure(run_magyro("report", SESSION, tmp_path / "nope.json", "-o", missing, "-q"), 2)
     assert "nope.json" in message and not missing.exists()
+
+
+def test_the_verdict_and_the_sections_agree_on_the_real_recording(built):
+    """Issue 24: the headline never contradicts a section, and cites the sections' own numbers. On broad-02 the
+    split-half one-sigma is several times the reported one: section 5 cannot say the std can be trusted,
+    section 3 judges the larger (split-half) one against the targets, and the verdict repeats both."""
+    from magyro.result.consistency_record import MAX_HALF_Z
+    from magyro.targets import Targets
+
+    cal, _, report, _ = built
+    by = {s.key: s for s in report.sections}
+    # the split-half check the report computed, recomputed from its table: the largest split/reported ratio
+    ratios = re.findall(r"<td>([^<]+)</td><td>[^<]*</td><td>[^<]*</td><td>[^<]*</td><td>([0-9.]+)</td>"
+                        r"<td>([0-9.]+)</td>", by["split"].details)
+    largest = max(float(s) / float(r) for _, r, s in ratios if float(r) > 0)
+    assert len(ratios) == 12 and largest > MAX_HALF_Z     # broad-02: the reported std is too small somewhere
+    assert by["split"].status != "good" and "can be trusted" not in by["split"].sentence
+    said = re.search(r"differ by ([0-9.]+)× the reported one-sigma", by["split"].sentence)
+    assert said and float(said.group(1)) == pytest.approx(largest, rel=0.1)
+    assert by["split"].caveat and by["split"].caveat in report.verdict
+    # section 3's caveat is in the verdict word for word, and names a one-sigma above its target
+    if by["calibration"].status != "good":
+        assert by["calibration"].caveat and by["calibration"].caveat in report.verdict
+        assert "target" in by["calibration"].caveat
+    # every section the verdict calls right is GOOD, and every one it cautions about is not
+    for s in report.sections:
+        name = s.title.split(". ", 1)[-1].lower()
+        if s.key == "dead-reckoning":
+            continue
+        assert (f"Caveat ({name})" in report.verdict or f"Problem ({name})" in report.verdict) == (s.status != "good")
+    # the overall status is the worst section's
+    assert report.status == max((s.status for s in report.sections if s.status),
+                                key=("good", "fair", "poor").index)
+    # the targets the page judged against are on it
+    assert html.escape(Targets().text()) in report.html

@@ -1,7 +1,10 @@
 """Acceptance limits of a production line, and each device's verdict against them.
 
-`load_limits(path)` reads a TOML file with one ``[limits]`` table (an example with every key
-explained: docs/limits-example.toml); `verdict(row, limits)` judges one row of the fleet
+`load_limits(path)` reads a TOML file with a ``[limits]`` table and/or a ``[targets]`` table (an example
+with every key explained: docs/limits-example.toml). The ``[targets]`` table is the accuracy targets every
+command shares (magyro.targets; ``magyro observe/watch/report --targets`` read the same file): in a batch
+they are the std limits (`STD_OF_TARGET`), so observe, report and batch judge a one-sigma against one set
+of numbers. `with_targets(limits, targets)` adds them from ``magyro batch --targets``; `verdict(row, limits)` judges one row of the fleet
 summary (`magyro.batch.row`) and `with_verdicts(rows, limits)` adds the columns ``verdict``
 ("accepted" | "rejected" | "failed") and ``verdict_reason`` to copies of the rows. The limits
 only read the rows, so changing them never re-solves a session.
@@ -62,6 +65,9 @@ CHECKS = {
     "max_split_rms_z": (["split_rms_z"], "", False),
 }
 NUMBER_KEYS = tuple(CHECKS)
+# the accuracy targets (magyro.targets.Targets field) that set each std limit
+STD_OF_TARGET = {"scale_factor_ppm": "max_std_scale_ppm", "non_orthogonality_deg": "max_std_nonorth_deg",
+                 "bias_deg_s": "max_std_bias_deg_s", "misalignment_deg": "max_std_misalignment_deg"}
 LIST_KEYS = ("reject_warnings", "reject_findings")
 KEYS = NUMBER_KEYS + LIST_KEYS
 
@@ -81,21 +87,31 @@ def load_limits(path) -> Limits:
 
 
 def parse_limits(raw: dict, source: str = "limits") -> Limits:
-    """The `Limits` of a parsed TOML document ``{"limits": {...}}``; InputError naming `source` and the key."""
-    extra = sorted(k for k in raw if k != "limits")
+    """The `Limits` of a parsed TOML document ``{"limits": {...}, "targets": {...}}`` (either table may be left
+    out, not both); InputError naming `source` and the key."""
+    from magyro.targets import parse_targets
+
+    extra = sorted(k for k in raw if k not in ("limits", "targets"))
     if extra:
-        raise InputError(f"{source}: unknown top-level key(s) {', '.join(extra)}; the only one allowed is the "
-                         f"[limits] table")
-    if "limits" not in raw:
+        raise InputError(f"{source}: unknown top-level key(s) {', '.join(extra)}; the only ones allowed are the "
+                         f"[limits] and [targets] tables")
+    if "limits" not in raw and "targets" not in raw:
         raise InputError(f"{source}: no [limits] table; write the limits under a [limits] line "
                          f"(see docs/limits-example.toml)")
-    table = raw["limits"]
+    table = raw.get("limits", {})
     if not isinstance(table, dict):
         raise InputError(f"{source}: limits must be a [limits] table, got {type(table).__name__}")
     unknown = sorted(k for k in table if k not in KEYS)
     if unknown:
         raise InputError(f"{source} [limits]: unknown key(s) {', '.join(unknown)}; the keys are "
                          f"{', '.join(KEYS)}")
+    if "targets" in raw:
+        both = sorted(k for k in STD_OF_TARGET.values() if k in table)
+        if both:
+            raise InputError(f"{source}: {', '.join(both)} in [limits] and a [targets] table set the same std "
+                             "limits twice; keep the [targets] table (observe, watch and report read it too)")
+        targets = parse_targets(raw["targets"], source)
+        table = {**table, **{key: getattr(targets, name) for name, key in STD_OF_TARGET.items()}}
     values: dict = {}
     for key in NUMBER_KEYS:
         if key in table:
@@ -105,6 +121,20 @@ def parse_limits(raw: dict, source: str = "limits") -> Limits:
             known = WARNING_KINDS + (ANY,) if key == "reject_warnings" else FINDING_KINDS
             values[key] = _kinds(table[key], f"{source} [limits] {key}", known)
     return Limits(**values)
+
+
+def with_targets(limits: Limits | None, targets) -> Limits:
+    """`limits` with its std limits set to the accuracy targets (``magyro batch --targets``); InputError when the
+    limits already set them (one notion of good enough, set in one place)."""
+    from dataclasses import replace
+
+    limits = limits if limits is not None else Limits()
+    already = [key for name, key in STD_OF_TARGET.items()
+               if getattr(limits, key) is not None and getattr(limits, key) != getattr(targets, name)]
+    if already:
+        raise InputError(f"--targets and the limits file both set the std limits ({', '.join(already)}); "
+                         "set them once, in the [targets] table")
+    return replace(limits, **{key: getattr(targets, name) for name, key in STD_OF_TARGET.items()})
 
 
 def _number(value, where: str) -> float:
@@ -217,5 +247,5 @@ def _decimals(limit: float) -> int:
     return max(0, 1 - math.floor(math.log10(limit)))
 
 
-__all__ = ["Limits", "load_limits", "parse_limits", "verdict", "with_verdicts", "describe", "KEYS",
+__all__ = ["Limits", "load_limits", "parse_limits", "with_targets", "STD_OF_TARGET", "verdict", "with_verdicts", "describe", "KEYS",
            "FINDING_KINDS", "WARNING_KINDS"]

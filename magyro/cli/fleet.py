@@ -6,7 +6,8 @@ from typing import List, Optional
 
 import typer
 
-from magyro.cli.common import fail, run_guarded
+from magyro.cli.common import (TARGET_BIAS_OPTION, TARGET_MISALIGNMENT_OPTION, TARGET_NONORTH_OPTION,
+                               TARGET_SCALE_OPTION, TARGETS_OPTION, fail, run_guarded)
 from magyro.options import Repairs
 
 
@@ -14,6 +15,11 @@ def batch(
     inputs: List[str] = typer.Argument(..., help="Session files, folders of them, globs (quoted), or a manifest CSV with columns device_id,session."),
     outdir: Path = typer.Option(..., "-o", "--output", help="Folder for the results (created): calibrations/ID.json, rows/, summary.parquet, summary.csv, summary.html."),
     limits: Optional[Path] = typer.Option(None, "--limits", help="Acceptance limits (TOML, [limits] table; docs/limits-example.toml). Without: every calibrated device is accepted."),
+    targets_file: Optional[Path] = TARGETS_OPTION,
+    target_scale_ppm: Optional[float] = TARGET_SCALE_OPTION,
+    target_nonorth_deg: Optional[float] = TARGET_NONORTH_OPTION,
+    target_bias_deg_s: Optional[float] = TARGET_BIAS_OPTION,
+    target_misalignment_deg: Optional[float] = TARGET_MISALIGNMENT_OPTION,
     jobs: int = typer.Option(1, "--jobs", "-j", min=1, help="Solve in this many processes (one BLAS thread each)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Solve on the Dask cluster whose scheduler is at this address (tcp://host:port; default: $MAGYRO_SCHEDULER, else the local pool of --jobs). Needs magyro[dask]."),
     redo: bool = typer.Option(False, "--redo", help="Solve every device again, even those already done with the same input and options."),
@@ -33,13 +39,17 @@ def batch(
     go on. Exit 0 when every device is accepted, 1 when any is rejected or failed (listed, and in the
     summary), 2 when the batch itself is unusable (no inputs, a bad manifest or limits file).
     """
-    from magyro.batch.limits import load_limits
+    from magyro.batch.limits import load_limits, with_targets
+    from magyro.targets import resolve_targets
     from magyro.batch.run import run_batch
     from magyro.options import Options
     from magyro.progress import counting
 
     def action():
         chosen = load_limits(limits) if limits is not None else None
+        flags = (target_scale_ppm, target_nonorth_deg, target_bias_deg_s, target_misalignment_deg)
+        if targets_file is not None or any(v is not None for v in flags):   # the std limits: the shared targets
+            chosen = with_targets(chosen, resolve_targets(targets_file, *flags))
         options = Options.in_user_units(gyro_noise_deg_s_sqrt_hz, mag_noise, split_check=split_check,
                                         repairs=Repairs.without(no_repair or []))
         with counting(0, "devices", enabled=not quiet) as tick:

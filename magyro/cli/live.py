@@ -11,7 +11,8 @@ from typing import Optional
 
 import typer
 
-from magyro.cli.common import fail, run_guarded
+from magyro.cli.common import (TARGET_BIAS_OPTION, TARGET_MISALIGNMENT_OPTION, TARGET_NONORTH_OPTION,
+                               TARGET_SCALE_OPTION, TARGETS_OPTION, fail, run_guarded)
 
 
 def watch_command(
@@ -23,10 +24,11 @@ def watch_command(
     idle: Optional[float] = typer.Option(None, "--idle", min=0.0, help="Stop after this many seconds without new data (default: 10 for a file, never for standard input or a serial port)."),
     gyro_unit: str = typer.Option("rad/s", "--gyro-unit", help="Unit of gx gy gz: rad/s or deg/s (the session is saved in rad/s)."),
     mag_unit: str = typer.Option("unknown", "--mag-unit", help="Magnetometer unit label, e.g. uT (any unit works)."),
-    target_scale_ppm: float = typer.Option(1000.0, "--target-scale-ppm", min=0.0, help="One-sigma target of the gyro scale factors (K_g diagonal), ppm (as magyro observe)."),
-    target_nonorth_deg: float = typer.Option(0.1, "--target-nonorth-deg", min=0.0, help="... of the non-orthogonality (K_g off-diagonal), deg."),
-    target_bias_deg_s: float = typer.Option(0.01, "--target-bias-deg-s", min=0.0, help="... of the gyro bias, deg/s."),
-    target_misalignment_deg: float = typer.Option(0.1, "--target-misalignment-deg", min=0.0, help="... of the gyro-magnetometer misalignment, deg."),
+    targets_file: Optional[Path] = TARGETS_OPTION,
+    target_scale_ppm: Optional[float] = TARGET_SCALE_OPTION,
+    target_nonorth_deg: Optional[float] = TARGET_NONORTH_OPTION,
+    target_bias_deg_s: Optional[float] = TARGET_BIAS_OPTION,
+    target_misalignment_deg: Optional[float] = TARGET_MISALIGNMENT_OPTION,
     refresh: float = typer.Option(2.0, "--refresh", min=0.0, help="Seconds of data between two predictions of the accuracy (each is magyro observe on the data so far, in a background process; a new one starts only when the last is in)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No live display; only the final summary."),
 ):
@@ -37,11 +39,13 @@ def watch_command(
     stopped (and the session, if asked, is written), 2 when the input is unusable.
     """
     from magyro.live.watch import watch
+    from magyro.targets import resolve_targets
 
     def action():
+        targets = resolve_targets(targets_file, target_scale_ppm, target_nonorth_deg, target_bias_deg_s,
+                                  target_misalignment_deg)
         return watch(source, output=output, status=status, serial=serial, baud=baud, idle=idle, gyro_unit=gyro_unit,
-                     mag_unit=mag_unit, targets=(target_scale_ppm, target_nonorth_deg, target_bias_deg_s,
-                                                 target_misalignment_deg), refresh=refresh, quiet=quiet)
+                     mag_unit=mag_unit, targets=targets, refresh=refresh, quiet=quiet)
 
     result = run_guarded(action, progress=False)
     if output is not None and not result.saved:

@@ -6,7 +6,8 @@ from typing import List, Optional
 
 import typer
 
-from magyro.cli.common import fail, run_guarded
+from magyro.cli.common import (TARGET_BIAS_OPTION, TARGET_MISALIGNMENT_OPTION, TARGET_NONORTH_OPTION,
+                               TARGET_SCALE_OPTION, TARGETS_OPTION, fail, run_guarded)
 from magyro.options import Repairs, StdBounds
 
 
@@ -18,12 +19,13 @@ def observe_command(
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
     gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", help="Gyro noise density, deg/s/sqrt(Hz) (default: estimated)."),
     mag_noise: Optional[float] = typer.Option(None, "--mag-noise", help="Magnetometer noise std, in its unit (default: estimated)."),
-    target_scale_ppm: float = typer.Option(1000.0, "--target-scale-ppm", min=0.0, help="One-sigma target of the gyro scale factors (K_g diagonal), ppm."),
-    target_nonorth_deg: float = typer.Option(0.1, "--target-nonorth-deg", min=0.0, help="One-sigma target of the gyro non-orthogonality (K_g off-diagonal), deg."),
-    target_bias_deg_s: float = typer.Option(0.01, "--target-bias-deg-s", min=0.0, help="One-sigma target of the gyro bias, deg/s."),
-    target_misalignment_deg: float = typer.Option(0.1, "--target-misalignment-deg", min=0.0, help="One-sigma target of the gyro-magnetometer misalignment, deg."),
+    targets_file: Optional[Path] = TARGETS_OPTION,
+    target_scale_ppm: Optional[float] = TARGET_SCALE_OPTION,
+    target_nonorth_deg: Optional[float] = TARGET_NONORTH_OPTION,
+    target_bias_deg_s: Optional[float] = TARGET_BIAS_OPTION,
+    target_misalignment_deg: Optional[float] = TARGET_MISALIGNMENT_OPTION,
     no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help="Turn a repair of the recording off: restamp, held, saturation, spikes, or all (repeat for several)."),
-    max_std_scale_ppm: float = typer.Option(StdBounds.scale_ppm, "--max-std-scale-ppm", min=0.0, help="Refuse (exit 3) when the predicted one-sigma of a gyro scale factor exceeds this, ppm."),
+    max_std_scale_ppm: float = typer.Option(StdBounds.scale_ppm, "--max-std-scale-ppm", min=0.0, help="Refusal bound (not the targets): refuse (exit 3) when the predicted one-sigma of a gyro scale factor exceeds this, ppm."),
     max_std_nonorth_deg: float = typer.Option(StdBounds.nonorthogonality_deg, "--max-std-nonorth-deg", min=0.0, help="... of a non-orthogonality angle, deg."),
     max_std_bias_deg_s: float = typer.Option(StdBounds.bias_deg_s, "--max-std-bias-deg-s", min=0.0, help="... of a gyro bias, deg/s."),
     max_std_misalignment_deg: float = typer.Option(StdBounds.misalignment_deg, "--max-std-misalignment-deg", min=0.0, help="... of the misalignment, deg."),
@@ -36,12 +38,14 @@ def observe_command(
     """
     from magyro.api import observe_file
     from magyro.options import Options
+    from magyro.targets import resolve_targets
 
     def action():
         bounds = StdBounds(max_std_scale_ppm, max_std_nonorth_deg, max_std_bias_deg_s, max_std_misalignment_deg)
         options = Options.in_user_units(gyro_noise_deg_s_sqrt_hz, mag_noise, max_std=bounds,
                                         repairs=Repairs.without(no_repair or []))
-        targets = (target_scale_ppm, target_nonorth_deg, target_bias_deg_s, target_misalignment_deg)
+        targets = resolve_targets(targets_file, target_scale_ppm, target_nonorth_deg, target_bias_deg_s,
+                                  target_misalignment_deg)
         report = observe_file(session, options, targets, gyro_unit=gyro_unit, mag_unit=mag_unit, output=output, plot=plot)
         if not quiet:
             typer.echo(report.table())

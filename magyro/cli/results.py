@@ -6,7 +6,8 @@ from typing import Optional
 
 import typer
 
-from magyro.cli.common import run_guarded
+from magyro.cli.common import (TARGET_BIAS_OPTION, TARGET_MISALIGNMENT_OPTION, TARGET_NONORTH_OPTION,
+                               TARGET_SCALE_OPTION, TARGETS_OPTION, run_guarded)
 
 
 def validate_command(
@@ -78,16 +79,24 @@ def report_command(
     split_check: bool = typer.Option(True, "--split-check/--no-split-check", help="Compute the split-half check when the calibration has none (two more solves)."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
+    targets_file: Optional[Path] = TARGETS_OPTION,
+    target_scale_ppm: Optional[float] = TARGET_SCALE_OPTION,
+    target_nonorth_deg: Optional[float] = TARGET_NONORTH_OPTION,
+    target_bias_deg_s: Optional[float] = TARGET_BIAS_OPTION,
+    target_misalignment_deg: Optional[float] = TARGET_MISALIGNMENT_OPTION,
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress and no verdict on the terminal."),
 ):
     """One HTML page to read or send: the recording check, excitation, calibration with std, residuals, split-half
     check and dead reckoning, each with a figure and a sentence saying whether it is good (needs magyro[plot])."""
     from magyro.report import report_file
+    from magyro.targets import resolve_targets
 
     def action():
         say = None if quiet else (lambda message: typer.echo(f"report: {message}", err=True))
+        targets = resolve_targets(targets_file, target_scale_ppm, target_nonorth_deg, target_bias_deg_s,
+                                  target_misalignment_deg)
         report = report_file(session, calibration, output, split_check=split_check, gyro_unit=gyro_unit,
-                             mag_unit=mag_unit, progress=say)
+                             mag_unit=mag_unit, progress=say, targets=targets)
         if not quiet:
             typer.echo(report.verdict)
             typer.echo(f"report written to {output}")

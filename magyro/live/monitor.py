@@ -151,7 +151,8 @@ class ExcitationMonitor:
 
     def __init__(self, targets=None, predictor: "Predictor | None" = None, mag_unit: str = "unknown",
                  source: str = "watch", options=None):
-        from magyro.observability.report import SPHERE_BANDS, SPHERE_SECTORS, Targets
+        from magyro.observability.report import SPHERE_BANDS, SPHERE_SECTORS
+        from magyro.targets import Targets
 
         self.targets = targets or Targets()
         self.predictor = predictor

@@ -45,13 +45,11 @@ def watch(source: str, *, output=None, status=None, serial: bool = False, baud: 
     from magyro.live.monitor import ExcitationMonitor
     from magyro.live.prediction import Predictor
     from magyro.live.sources import END, LineParser, LineReader, resolve_source
-    from magyro.observability.report import Targets
+    from magyro.targets import targets_from
 
     src = resolve_source(source, serial=serial, baud=baud)
     check_outputs([src.name] if src.kind == "file" else [], [output, status])   # before any work
-    if targets is not None and not isinstance(targets, Targets):
-        targets = Targets(*targets)
-    targets = targets or Targets()
+    targets = targets_from(targets)
     parser = LineParser(gyro_unit)
     if idle is None and src.kind == "file":
         idle = DEFAULT_FILE_IDLE_S

@@ -28,7 +28,7 @@ from magyro.observability.gate import ObservabilityAnalysis, analyse
 _LAZY = {
     "observe": "magyro.observability.excitation",
     "ObservabilityReport": "magyro.observability.report",
-    "Targets": "magyro.observability.report",
+    "Targets": "magyro.targets",
 }
 __all__ = ["analyse", "ObservabilityAnalysis", *_LAZY]
 

@@ -251,7 +251,8 @@ def accuracy_gate(std, options) -> list[str]:
 
         raise ObservabilityError(
             f"the motion excites every gyro parameter, but too weakly for a calibration worth having: {summary} "
-            "(--force solves anyway; the bounds are Options.max_std, --max-std-* on the command line)")
+            "(--force solves anyway; this is the refusal bound, Options.max_std or --max-std-*; the accuracy targets, "
+            "--targets, are a separate and stricter notion)")
     return [f"solved with --force although the motion is too weak: {summary}"]
 
 

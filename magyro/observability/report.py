@@ -18,6 +18,7 @@ from magyro.observability.advice import describe_direction, direction_snr
 from magyro.observability.gate import AXES, FLOOR_FACTOR, WELL_CONDITIONED, ObservabilityAnalysis
 from magyro.observability.matrix import PARAMETER_NAMES
 from magyro.result.parts import Std
+from magyro.targets import Targets  # noqa: F401  (re-exported: the one set of accuracy targets)
 
 SCHEMA = "magyro.observability/1"
 SPHERE_BANDS = 12                 # equal-area grid of field directions: bands of equal height in z ...
@@ -26,16 +27,6 @@ SPHERE_GRID = (f"{SPHERE_BANDS * SPHERE_SECTORS} equal-area cells: {SPHERE_BANDS
                f"(equal area, Archimedes) x {SPHERE_SECTORS} sectors of {360 // SPHERE_SECTORS} deg longitude, "
                "in the magnetometer frame")
 UPPER_OFF_DIAGONAL = ((0, 1), (0, 2), (1, 2))
-
-
-@dataclass(frozen=True)
-class Targets:
-    """One-sigma accuracy a calibration should reach; a predicted std above any of them is 'marginal'."""
-
-    scale_factor_ppm: float = 1000.0        # diagonal of K_g
-    non_orthogonality_deg: float = 0.1      # off-diagonal of K_g, as an angle
-    bias_deg_s: float = 0.01
-    misalignment_deg: float = 0.1
 
 
 @dataclass

@@ -28,7 +28,7 @@ class Report:
 
 
 def report_file(session_path, calibration_path, output, *, split_check: bool = True, gyro_unit: str | None = None,
-                mag_unit: str | None = None, progress=None) -> Report:
+                mag_unit: str | None = None, progress=None, targets=None) -> Report:
     """`magyro report SESSION CALIB -o report.html`: one self-contained HTML page judging a calibration.
 
     The page (figures as embedded PNG, CSS inline, no scripts) has six sections: the recording check, the
@@ -37,12 +37,17 @@ def report_file(session_path, calibration_path, output, *, split_check: bool = T
     seconds) and dead reckoning raw against calibrated. `output` None builds it without writing.
     `progress`, when given, is called with a short message before each step. Returns the `Report`
     (its `html` is the page). InputError for an unusable session or calibration file, before any output.
+    `targets` (a `magyro.targets.Targets`, a targets TOML path or None for the defaults) are what sections 2
+    and 3 judge the one-sigma against, as `magyro observe` and `magyro batch` do.
     """
     from magyro.io import check_outputs
     check_outputs([session_path, calibration_path], [output])  # before any work: no input overwritten, writable
     from magyro.io import load_session, write_text_atomically
     from magyro.result.calibration import Calibration
 
+    from magyro.targets import targets_from
+
+    targets = targets_from(targets)   # an unusable targets file is refused before any work
     say = progress or (lambda message: None)
     say("reading the calibration")
     cal = Calibration.from_json(calibration_path)
@@ -53,7 +58,7 @@ def report_file(session_path, calibration_path, output, *, split_check: bool = T
 
     check_applicable(cal, session, str(session_path))   # not twice, not in another unit, no absurd matrix
     report = build_report(session, cal, split_check=split_check, progress=say, session_path=str(session_path),
-                          calibration_path=str(calibration_path))
+                          calibration_path=str(calibration_path), targets=targets)
     if output is not None:
         say(f"writing {output}")
         write_text_atomically(output, report.html)
@@ -69,7 +74,7 @@ def _require_matplotlib() -> None:
 
 
 def build_report(session, cal, *, split_check: bool = True, progress=None, session_path: str = "",
-                 calibration_path: str = "") -> Report:
+                 calibration_path: str = "", targets=None) -> Report:
     """The report of a calibration `cal` on the session it was solved from (see `report_file`)."""
     import magyro
     from magyro.api import method_named, observe
@@ -80,6 +85,7 @@ def build_report(session, cal, *, split_check: bool = True, progress=None, sessi
     from magyro.report.html import render
     from magyro.result import consistency
     from magyro.studies.dead_reckoning import validate
+    from magyro.targets import Targets
 
     say = progress or (lambda message: None)
     options = Options()
@@ -89,7 +95,7 @@ def build_report(session, cal, *, split_check: bool = True, progress=None, sessi
         raise InputError(f"{session_path or 'the session'}: {check.error_message()}")
     parts = [S.recording_section(session, repaired, check)]
     say("analysing the excitation")
-    parts.append(S.excitation_section(observe(session, options)))
+    parts.append(S.excitation_section(observe(session, options, targets)))
     moving = moving_session(repaired, options)[0]
 
     split, computed, why_not = cal.consistency, False, None
@@ -107,7 +113,7 @@ def build_report(session, cal, *, split_check: bool = True, progress=None, sessi
     elif split is None:
         why_not = "the calibration carries none and it was not asked for (--no-split-check)"
     say("tabulating the calibration")
-    parts.append(S.calibration_section(cal, split))
+    parts.append(S.calibration_section(cal, split, targets))
     say("computing the residuals over time")
     parts.append(S.residual_section(moving, cal))
     parts.append(S.split_section(split, computed, why_not))
@@ -121,7 +127,8 @@ def build_report(session, cal, *, split_check: bool = True, progress=None, sessi
             warnings.append(f"(split-half check computed for this report) {warning}")
     meta = session.metadata or {}
     name = meta.get("device") or meta.get("trial") or Path(session_path or session.source or "session").stem
-    facts = [("session", Path(session_path).name if session_path else session.source),
+    facts = [("targets (one-sigma)", (targets or Targets()).text()),
+             ("session", Path(session_path).name if session_path else session.source),
              ("calibration", Path(calibration_path).name if calibration_path else "given"),
              ("span", f"{session.t_gyro_s[0]:.1f}–{session.t_gyro_s[-1]:.1f} s "
                       f"({session.t_gyro_s[-1] - session.t_gyro_s[0]:.0f} s), moving {moving.t_gyro_s[0]:.1f}–"
