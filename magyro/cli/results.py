@@ -35,8 +35,8 @@ def validate_command(
 
 
 def apply_command(
-    calibration: Path = typer.Argument(..., help="Calibration JSON written by magyro solve."),
     session: Path = typer.Argument(..., help="Session file to correct (.parquet or .csv, docs/spec.md section 2)."),
+    calibration: Path = typer.Argument(..., help="Calibration JSON written by magyro solve."),
     output: Path = typer.Option(..., "-o", "--output", help="Corrected session file to write (.parquet or .csv)."),
     frame: str = typer.Option("b", "--frame", help="Frame of the corrected rates: b (the gyro's: K_g y + eps_b) or m (the magnetometer's: K y + eps)."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
@@ -46,7 +46,7 @@ def apply_command(
     from magyro.api import apply_file
 
     def action():
-        s = apply_file(calibration, session, output, frame=frame, gyro_unit=gyro_unit, mag_unit=mag_unit)
+        s = apply_file(session, calibration, output, frame=frame, gyro_unit=gyro_unit, mag_unit=mag_unit)
         typer.echo(f"corrected session written to {output}: {len(s.t_gyro_s)} gyro samples in rad/s (frame {frame}), "
                    f"{len(s.t_mag_s)} magnetometer samples as the unit field")
 
