@@ -2,12 +2,40 @@
 for every failure the user can fix (`fail`, `run_guarded`), and `--version`."""
 from __future__ import annotations
 
+import inspect
 import os
 
 import typer
+from typer.core import TyperCommand
 
 from magyro import __version__
 from magyro.errors import MagyroError
+from magyro.options import Repairs
+
+NO_REPAIR_HELP = (f"Turn a repair of the recording off: {', '.join(Repairs.NAMES)}, or all (repeat for several; "
+                  "magyro check lists what each repairs).")
+
+
+def as_written(command):
+    """`command` with its help texts shown as written: rich would take the [plot] of "magyro[plot]" for markup
+    and print "magyro", and would break the summary where the docstring's lines break."""
+    from rich.markup import escape
+
+    if command.__doc__:
+        paragraphs = inspect.cleandoc(command.__doc__).split("\n\n")
+        command.__doc__ = escape("\n\n".join(" ".join(p.split()) for p in paragraphs))
+    for parameter in inspect.signature(command).parameters.values():
+        if getattr(parameter.default, "help", None):
+            parameter.default.help = escape(parameter.default.help)
+    return command
+
+
+class Command(TyperCommand):
+    """A command whose usage line names its arguments as its help does (SESSION CALIB), not in braces."""
+
+    def collect_usage_pieces(self, ctx):
+        return [piece[1:-1] if piece.startswith("{") and piece.endswith("}") else piece
+                for piece in super().collect_usage_pieces(ctx)]
 
 
 def fail(message: str, code: int) -> None:

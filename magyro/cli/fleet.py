@@ -6,12 +6,12 @@ from typing import List, Optional
 
 import typer
 
-from magyro.cli.common import fail, run_guarded
+from magyro.cli.common import NO_REPAIR_HELP, fail, run_guarded
 from magyro.options import Repairs
 
 
 def batch(
-    inputs: List[str] = typer.Argument(..., help="Session files, folders of them, globs (quoted), or a manifest CSV with columns device_id,session."),
+    inputs: List[str] = typer.Argument(..., metavar="INPUTS...", help="Session files, folders of them, globs (quoted), or a manifest CSV with columns device_id,session."),
     outdir: Path = typer.Option(..., "-o", "--output", help="Folder for the results (created): calibrations/ID.json, rows/, summary.parquet, summary.csv, summary.html."),
     limits: Optional[Path] = typer.Option(None, "--limits", help="Acceptance limits (TOML, [limits] table; docs/limits-example.toml). Without: every calibrated device is accepted."),
     jobs: int = typer.Option(1, "--jobs", "-j", min=1, help="Solve in this many processes (one BLAS thread each)."),
@@ -23,7 +23,7 @@ def batch(
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
     gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", help="Gyro noise density, deg/s/sqrt(Hz) (default: estimated per device)."),
     mag_noise: Optional[float] = typer.Option(None, "--mag-noise", help="Magnetometer noise std, in its unit (default: estimated per device)."),
-    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help="Turn a repair of the recording off: restamp, held, saturation, spikes, or all (repeat for several)."),
+    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help=NO_REPAIR_HELP),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress and no summary on the terminal."),
 ):
     """Many devices: calibrate every session, judge each against the limits, summarise the fleet.

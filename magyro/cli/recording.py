@@ -6,12 +6,12 @@ from typing import List, Optional
 
 import typer
 
-from magyro.cli.common import fail, run_guarded
+from magyro.cli.common import NO_REPAIR_HELP, fail, run_guarded
 from magyro.options import Repairs, StdBounds
 
 
 def observe_command(
-    session: Path = typer.Argument(..., help="Session file (.parquet or .csv, docs/spec.md section 2)."),
+    session: Path = typer.Argument(..., metavar="SESSION", help="Session file (.parquet or .csv, docs/spec.md section 2)."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the report JSON here (schema magyro.observability/1)."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write a figure here (.png, .pdf, .svg): field-direction coverage, eigenvalue growth, rates. Needs matplotlib."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
@@ -22,7 +22,7 @@ def observe_command(
     target_nonorth_deg: float = typer.Option(0.1, "--target-nonorth-deg", min=0.0, help="One-sigma target of the gyro non-orthogonality (K_g off-diagonal), deg."),
     target_bias_deg_s: float = typer.Option(0.01, "--target-bias-deg-s", min=0.0, help="One-sigma target of the gyro bias, deg/s."),
     target_misalignment_deg: float = typer.Option(0.1, "--target-misalignment-deg", min=0.0, help="One-sigma target of the gyro-magnetometer misalignment, deg."),
-    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help="Turn a repair of the recording off: restamp, held, saturation, spikes, or all (repeat for several)."),
+    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help=NO_REPAIR_HELP),
     max_std_scale_ppm: float = typer.Option(StdBounds.scale_ppm, "--max-std-scale-ppm", min=0.0, help="Refuse (exit 3) when the predicted one-sigma of a gyro scale factor exceeds this, ppm."),
     max_std_nonorth_deg: float = typer.Option(StdBounds.nonorthogonality_deg, "--max-std-nonorth-deg", min=0.0, help="... of a non-orthogonality angle, deg."),
     max_std_bias_deg_s: float = typer.Option(StdBounds.bias_deg_s, "--max-std-bias-deg-s", min=0.0, help="... of a gyro bias, deg/s."),
@@ -56,11 +56,11 @@ def observe_command(
 
 
 def check_command(
-    session: Path = typer.Argument(..., help="Session file (.parquet or .csv, docs/spec.md section 2)."),
+    session: Path = typer.Argument(..., metavar="SESSION", help="Session file (.parquet or .csv, docs/spec.md section 2)."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the check as JSON here (schema magyro.recording/1)."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
-    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help="Turn a repair of the recording off: restamp, held, saturation, spikes, or all (repeat for several)."),
+    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help=NO_REPAIR_HELP),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
 ):
     """Is the recording sound? Rates, jitter, bursts, gaps, held samples, clock drift, saturation, spikes, units;
