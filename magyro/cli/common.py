@@ -3,7 +3,9 @@ for every failure the user can fix (`fail`, `run_guarded`), and `--version`."""
 from __future__ import annotations
 
 import inspect
+import math
 import os
+import re
 
 import typer
 from typer.core import TyperCommand
@@ -28,6 +30,38 @@ def as_written(command):
         if getattr(parameter.default, "help", None):
             parameter.default.help = escape(parameter.default.help)
     return command
+
+
+# a gyro noise density in deg/s/sqrt(Hz) per unit people write it in (Kalibr and imu_tk: rad/s/sqrt(Hz);
+# datasheets: mdps/sqrt(Hz), or an angle random walk in deg/sqrt(h) = 1/60 deg/s/sqrt(Hz))
+GYRO_DENSITY_UNITS_DEG_S = {"deg/s/sqrt(Hz)": 1.0, "rad/s/sqrt(Hz)": math.degrees(1.0), "mdps/sqrt(Hz)": 1e-3,
+                            "deg/sqrt(h)": 1.0 / 60.0}
+
+
+def _unit_key(unit: str) -> str:
+    return unit.replace(" ", "").replace("√Hz", "sqrt(Hz)").replace("√h", "sqrt(h)").replace("°", "deg").lower()
+
+
+def gyro_noise_density(value) -> float:
+    """--gyro-noise: a number in deg/s/sqrt(Hz), or a number with one of GYRO_DENSITY_UNITS_DEG_S
+    ("0.0002rad/s/sqrt(Hz)", "0.0002 rad/s/√Hz"); the value in deg/s/sqrt(Hz)."""
+    if isinstance(value, float):
+        return value
+    found = re.fullmatch(r"\s*([-+0-9.eE]+)\s*(.*?)\s*", str(value))
+    factors = {_unit_key(u): f for u, f in GYRO_DENSITY_UNITS_DEG_S.items()}
+    try:
+        density = float(found.group(1)) * factors[_unit_key(found.group(2) or "deg/s/sqrt(Hz)")]
+    except (AttributeError, ValueError, KeyError):
+        raise typer.BadParameter(f"{value!r} is not a noise density: a number in deg/s/sqrt(Hz), or a number with "
+                                 f"one of the units {', '.join(GYRO_DENSITY_UNITS_DEG_S)}") from None
+    if not (math.isfinite(density) and density > 0):
+        raise typer.BadParameter(f"{value!r}: a noise density must be a positive number")
+    return density
+
+
+def gyro_noise_help(default: str) -> str:
+    return (f"Gyro noise density: a number in deg/s/sqrt(Hz), or with its unit, e.g. 0.0002rad/s/sqrt(Hz) (units: "
+            f"{', '.join(GYRO_DENSITY_UNITS_DEG_S)}). Default: {default}.")
 
 
 class Command(TyperCommand):

@@ -6,7 +6,7 @@ from typing import List, Optional
 
 import typer
 
-from magyro.cli.common import NO_REPAIR_HELP, fail, run_guarded
+from magyro.cli.common import gyro_noise_density, gyro_noise_help, NO_REPAIR_HELP, fail, run_guarded
 from magyro.options import Repairs
 
 
@@ -21,7 +21,7 @@ def batch(
     split_check: bool = typer.Option(False, "--split-check", help="Also calibrate each half of every recording alone (about 2x the time); gives the split_rms_z column."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the files' metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
-    gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", help="Gyro noise density, deg/s/sqrt(Hz) (default: estimated per device)."),
+    gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", parser=gyro_noise_density, metavar="DENSITY", help=gyro_noise_help("estimated per device")),
     mag_noise: Optional[float] = typer.Option(None, "--mag-noise", help="Magnetometer noise std, in its unit (default: estimated per device)."),
     no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help=NO_REPAIR_HELP),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress and no summary on the terminal."),

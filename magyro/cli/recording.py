@@ -6,7 +6,7 @@ from typing import List, Optional
 
 import typer
 
-from magyro.cli.common import NO_REPAIR_HELP, fail, run_guarded
+from magyro.cli.common import gyro_noise_density, gyro_noise_help, NO_REPAIR_HELP, fail, run_guarded
 from magyro.options import Repairs, StdBounds
 
 
@@ -16,7 +16,7 @@ def observe_command(
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write a figure here (.png, .pdf, .svg): field-direction coverage, eigenvalue growth, rates. Needs matplotlib."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
-    gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", help="Gyro noise density, deg/s/sqrt(Hz) (default: estimated)."),
+    gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", parser=gyro_noise_density, metavar="DENSITY", help=gyro_noise_help("estimated")),
     mag_noise: Optional[float] = typer.Option(None, "--mag-noise", help="Magnetometer noise std, in its unit (default: estimated)."),
     target_scale_ppm: float = typer.Option(1000.0, "--target-scale-ppm", min=0.0, help="One-sigma target of the gyro scale factors (K_g diagonal), ppm."),
     target_nonorth_deg: float = typer.Option(0.1, "--target-nonorth-deg", min=0.0, help="One-sigma target of the gyro non-orthogonality (K_g off-diagonal), deg."),

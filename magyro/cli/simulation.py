@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from magyro.cli.common import fail, run_guarded
+from magyro.cli.common import gyro_noise_density, gyro_noise_help, fail, run_guarded
 
 
 def simulate(
@@ -83,7 +83,7 @@ def montecarlo(
 
 def plan_command(
     duration: float = typer.Option(..., "--duration", help="Length of the recording to plan, s (at least 3; 1 s still at both ends)."),
-    gyro_noise: Optional[float] = typer.Option(None, "--gyro-noise", help="Gyro noise density, deg/s/sqrt(Hz) (default: the base problem's)."),
+    gyro_noise: Optional[float] = typer.Option(None, "--gyro-noise", parser=gyro_noise_density, metavar="DENSITY", help=gyro_noise_help("the base problem's")),
     mag_noise: Optional[float] = typer.Option(None, "--mag-noise", help="Magnetometer noise std per axis, in the base problem's unit (default: the base problem's)."),
     max_rate: float = typer.Option(200.0, "--max-rate", help="Peak body rate of every turn, deg/s (the comparison motions are brought to it too)."),
     base: str = typer.Option("paper-table1", "--base", help="Problem whose sensors (and start pose) the plan is for: a file, or the name of one shipped in problems/."),

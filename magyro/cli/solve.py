@@ -6,7 +6,7 @@ from typing import List, Optional
 
 import typer
 
-from magyro.cli.common import NO_REPAIR_HELP, run_guarded
+from magyro.cli.common import gyro_noise_density, gyro_noise_help, NO_REPAIR_HELP, run_guarded
 from magyro.options import Repairs, StdBounds
 
 
@@ -15,7 +15,7 @@ def solve(
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the calibration JSON here."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
-    gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", help="Gyro noise density, deg/s/sqrt(Hz) (default: estimated)."),
+    gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", parser=gyro_noise_density, metavar="DENSITY", help=gyro_noise_help("estimated")),
     mag_noise: Optional[float] = typer.Option(None, "--mag-noise", help="Magnetometer noise std, in its unit (default: estimated)."),
     stride: Optional[int] = typer.Option(None, "--stride", min=1, help="One attitude node every N segments, one per gyro or magnetometer sample (default: 12, or 4 below 96 Hz; other strides compile their kernels once)."),
     force: bool = typer.Option(False, "--force", help="Solve even when the motion does not excite every parameter."),
