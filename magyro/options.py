@@ -46,7 +46,7 @@ class Repairs:
 
     @classmethod
     def without(cls, names) -> "Repairs":
-        """All repairs but the ones named (restamp, held, saturation, spikes; all turns every one off)."""
+        """All repairs but the ones named (NAMES' keys, alone or comma-separated; all turns every one off)."""
         names = [n.strip() for item in names for n in item.split(",") if n.strip()]
         unknown = [n for n in names if n not in cls.NAMES and n != "all"]
         if unknown:

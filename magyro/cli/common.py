@@ -14,8 +14,8 @@ from magyro import __version__
 from magyro.errors import MagyroError
 from magyro.options import Repairs
 
-NO_REPAIR_HELP = (f"Turn a repair of the recording off: {', '.join(Repairs.NAMES)}, or all (repeat for several; "
-                  "magyro check lists what each repairs).")
+NO_REPAIR_HELP = (f"Turn a repair of the recording off: {', '.join(Repairs.NAMES)}, or all (repeat, or separate "
+                  "by commas, for several; magyro check lists what each repairs).")
 
 
 def as_written(command):
