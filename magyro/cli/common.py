@@ -1,5 +1,7 @@
 """What every command of `magyro` shares: one plain message and the exit code of docs/spec.md section 3
-for every failure the user can fix (`fail`, `run_guarded`), and `--version`."""
+for every failure the user can fix (`fail`, `run_guarded`), `--version`, help shown as written
+(`as_written`, `Command`), and the options several commands take alike (`--no-repair`, `--gyro-noise` with
+its unit)."""
 from __future__ import annotations
 
 import inspect
@@ -35,7 +37,7 @@ def as_written(command):
 # a gyro noise density in deg/s/sqrt(Hz) per unit people write it in (Kalibr and imu_tk: rad/s/sqrt(Hz);
 # datasheets: mdps/sqrt(Hz), or an angle random walk in deg/sqrt(h) = 1/60 deg/s/sqrt(Hz))
 GYRO_DENSITY_UNITS_DEG_S = {"deg/s/sqrt(Hz)": 1.0, "rad/s/sqrt(Hz)": math.degrees(1.0), "mdps/sqrt(Hz)": 1e-3,
-                            "deg/sqrt(h)": 1.0 / 60.0}
+                            "dps/sqrt(Hz)": 1.0, "deg/sqrt(h)": 1.0 / 60.0}
 
 
 def _unit_key(unit: str) -> str:
