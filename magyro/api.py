@@ -302,7 +302,7 @@ def check_file(path, gyro_unit: str | None = None, mag_unit: str | None = None, 
     return check
 
 
-def apply_file(calibration_path, session_path, output, frame: str = "b", gyro_unit: str | None = None,
+def apply_file(session_path, calibration_path, output, frame: str = "b", gyro_unit: str | None = None,
                mag_unit: str | None = None) -> Session:
     """`magyro apply`: a session file corrected by a calibration JSON, written as a new session file.
 
@@ -315,7 +315,7 @@ def apply_file(calibration_path, session_path, output, frame: str = "b", gyro_un
     from dataclasses import replace as replaced
 
     from magyro.io import check_outputs
-    check_outputs([calibration_path, session_path], [output])  # before any work: no input overwritten, writable
+    check_outputs([session_path, calibration_path], [output])  # before any work: no input overwritten, writable
     from magyro.io import load_session, write_session
     from magyro.result.applicable import check_applicable, check_finite_result
 

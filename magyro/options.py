@@ -48,7 +48,7 @@ class Repairs:
 
     @classmethod
     def without(cls, names) -> "Repairs":
-        """All repairs but the ones named (restamp, held, saturation, spikes; all turns every one off)."""
+        """All repairs but the ones named (NAMES' keys, alone or comma-separated; all turns every one off)."""
         names = [n.strip() for item in names for n in item.split(",") if n.strip()]
         unknown = [n for n in names if n not in cls.NAMES and n != "all"]
         if unknown:
@@ -78,5 +78,10 @@ class Options:
     def in_user_units(cls, gyro_noise_deg_s_sqrt_hz: float | None = None, mag_noise_std: float | None = None,
                       **settings) -> "Options":
         """Options from the units people quote: the gyro noise density in deg/s/sqrt(Hz)."""
+        from magyro.errors import InputError
+
+        for name, value in (("--gyro-noise", gyro_noise_deg_s_sqrt_hz), ("--mag-noise", mag_noise_std)):
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise InputError(f"{name} must be a positive number, not {value:g}")
         density = None if gyro_noise_deg_s_sqrt_hz is None else math.radians(gyro_noise_deg_s_sqrt_hz)
         return cls(gyro_noise_density_rad_s_sqrt_hz=density, mag_noise_std=mag_noise_std, **settings)

@@ -43,7 +43,7 @@ def applied(solved):
     folder, _, _, cal_path = solved
     out = folder / "corrected.parquet"
     before = sha256(BROAD_02), sha256(cal_path)
-    apply_file(cal_path, BROAD_02, out)
+    apply_file(BROAD_02, cal_path, out)
     assert (sha256(BROAD_02), sha256(cal_path)) == before   # the inputs are never changed
     return out
 
@@ -68,7 +68,7 @@ def test_applied_gyro_and_field_equal_calibration_apply(solved, applied):
 def test_frame_m_gives_the_magnetometer_frame_rates(solved):
     folder, session, cal, cal_path = solved
     out = folder / "corrected-m.parquet"
-    corrected = apply_file(cal_path, BROAD_02, out, frame="m")
+    corrected = apply_file(BROAD_02, cal_path, out, frame="m")
     np.testing.assert_array_equal(load_session(out).gyro_rad_s, cal.apply(session.gyro_rad_s, frame="m")[0])
     assert corrected.metadata["calibration_frame"] == "m"
 
@@ -88,23 +88,23 @@ def test_dead_reckoning_the_applied_session_equals_validate(solved, applied):
 def test_apply_refuses_a_wrong_frame_an_output_that_is_the_input_and_a_calibrated_session(solved, applied):
     folder, _, _, cal_path = solved
     with pytest.raises(InputError, match="unknown frame"):
-        apply_file(cal_path, BROAD_02, folder / "x.parquet", frame="q")
+        apply_file(BROAD_02, cal_path, folder / "x.parquet", frame="q")
     with pytest.raises(InputError, match="is the input"):
-        apply_file(cal_path, BROAD_02, BROAD_02)
+        apply_file(BROAD_02, cal_path, BROAD_02)
     with pytest.raises(InputError, match="already calibrated"):
-        apply_file(cal_path, applied, folder / "x.parquet")
+        apply_file(applied, cal_path, folder / "x.parquet")
     assert not (folder / "x.parquet").exists()
 
 
 def test_cli_apply_exit_0_and_exit_2_for_a_truth_file(solved, run_magyro, assert_plain_failure):
     folder, session, cal, cal_path = solved
     out = folder / "cli-corrected.parquet"
-    ok = run_magyro("apply", cal_path, BROAD_02, "-o", out, "--frame", "m")
+    ok = run_magyro("apply", BROAD_02, cal_path, "-o", out, "--frame", "m")
     assert ok.returncode == 0, ok.stderr
     assert "corrected session written" in ok.stdout
     np.testing.assert_array_equal(load_session(out).gyro_rad_s, cal.apply(session.gyro_rad_s, frame="m")[0])
     bad = folder / "bad.parquet"
-    message = assert_plain_failure(run_magyro("apply", TRUTH_FILE, BROAD_02, "-o", bad), 2)
+    message = assert_plain_failure(run_magyro("apply", BROAD_02, TRUTH_FILE, "-o", bad), 2)
     assert "true parameters of a simulated session" in message and "not a calibration" in message
     assert not bad.exists()
 

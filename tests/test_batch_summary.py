@@ -69,10 +69,10 @@ def test_inside_every_limit_is_accepted():
 
 
 @pytest.mark.parametrize("key, column, value, expected", [
-    ("max_abs_scale_ppm", "scale_ppm_z", -25000.0, "scale_ppm_z = -25000 > 20000 ppm"),
-    ("max_abs_nonorth_deg", "nonorth_deg_xz", 1.2, "nonorth_deg_xz = 1.2 > 1.0 deg"),
-    ("max_abs_bias_deg_s", "bias_deg_s_y", -0.62, "bias_deg_s_y = -0.62 > 0.50 deg/s"),
-    ("max_abs_misalignment_deg", "misalignment_deg_yaw", 3.5, "misalignment_deg_yaw = 3.5 > 3.0 deg"),
+    ("max_abs_scale_ppm", "scale_ppm_z", -25000.0, "|scale_ppm_z| = 25000 > 20000 ppm"),
+    ("max_abs_nonorth_deg", "nonorth_deg_xz", 1.2, "|nonorth_deg_xz| = 1.2 > 1.0 deg"),
+    ("max_abs_bias_deg_s", "bias_deg_s_y", -0.62, "|bias_deg_s_y| = 0.62 > 0.50 deg/s"),
+    ("max_abs_misalignment_deg", "misalignment_deg_yaw", 3.5, "|misalignment_deg_yaw| = 3.5 > 3.0 deg"),
     ("max_std_scale_ppm", "std_scale_ppm_x", 2400.0, "std_scale_ppm_x = 2400 > 2000 ppm"),
     ("max_std_nonorth_deg", "std_nonorth_deg_yz", 0.15, "std_nonorth_deg_yz = 0.15 > 0.10 deg"),
     ("max_std_bias_deg_s", "std_bias_deg_s_z", 0.07, "std_bias_deg_s_z = 0.070 > 0.050 deg/s"),
@@ -89,7 +89,7 @@ def test_each_limit_rejects_with_its_numbers(key, column, value, expected):
 def test_a_value_just_above_a_limit_is_not_shown_equal_to_it():
     kind, reason = verdict(good_row(bias_deg_s_x=0.5004), LIMITS)
     assert kind == "rejected"
-    value, limit = re.match(r"bias_deg_s_x = ([\d.]+) > ([\d.]+) deg/s", reason).groups()
+    value, limit = re.match(r"\|bias_deg_s_x\| = ([\d.]+) > ([\d.]+) deg/s", reason).groups()
     assert value != limit and float(value) > float(limit)
 
 
@@ -97,7 +97,7 @@ def test_every_broken_limit_is_named_in_order():
     row = good_row(bias_deg_s_y=-0.62, std_scale_ppm_x=2400.0, warning_kinds="split_check")
     limits = replace(LIMITS, reject_warnings=("split_check",))
     assert verdict(row, limits) == (
-        "rejected", "bias_deg_s_y = -0.62 > 0.50 deg/s; std_scale_ppm_x = 2400 > 2000 ppm; warning split_check")
+        "rejected", "|bias_deg_s_y| = 0.62 > 0.50 deg/s; std_scale_ppm_x = 2400 > 2000 ppm; warning split_check")
 
 
 def test_nan_of_a_limited_quantity_rejects():
@@ -136,7 +136,7 @@ def test_with_verdicts_adds_columns_to_copies():
     rows = [good_row(), good_row(bias_deg_s_x=0.9), failed_row("x")]
     out = with_verdicts(rows, LIMITS)
     assert [r["verdict"] for r in out] == ["accepted", "rejected", "failed"]
-    assert out[1]["verdict_reason"] == "bias_deg_s_x = 0.90 > 0.50 deg/s"
+    assert out[1]["verdict_reason"] == "|bias_deg_s_x| = 0.90 > 0.50 deg/s"
     assert all("verdict" not in r for r in rows)
 
 
@@ -252,7 +252,7 @@ def test_parquet_and_csv_round_trip(tmp_path):
     assert verdicts["dev-bad<1>"] == "failed" and verdicts["dev-000"] == "accepted"
     assert (frame["verdict"] == "accepted").sum() == 38
     reasons = dict(zip(frame["device_id"], frame["verdict_reason"]))
-    assert reasons["dev-002"] == "bias_deg_s_x = 1.9 > 1.5 deg/s"
+    assert reasons["dev-002"] == "|bias_deg_s_x| = 1.9 > 1.5 deg/s"
     assert reasons["dev-zz"] == "exit 1, solver failed: IPOPT: maximum iterations"
     original = {r["device_id"]: r for r in rows}
     assert np.allclose(frame["scale_ppm_y"], [original[d]["scale_ppm_y"] for d in frame["device_id"]],
@@ -278,7 +278,7 @@ def test_html_names_failures_and_outliers(tmp_path):
     assert "Line 3 &lt;night shift&gt;" in page and "<night shift>" not in page
     assert "dev-bad&lt;1&gt;" in page and "no &lt;gyro&gt; &amp; no mag" in page and "dev-bad<1>" not in page
     assert "exit 1, solver failed: IPOPT: maximum iterations" in page and "dev-zz" in page
-    assert "bias_deg_s_x = 1.90 &gt; 0.50 deg/s" in page
+    assert "|bias_deg_s_x| = 1.90 &gt; 0.50 deg/s" in page
     table = page.split("<h2>Outliers</h2>", 1)[1]
     assert "<td>dev-011</td><td>scale_ppm_z</td>" in table
     assert "<td>dev-002</td><td>bias_deg_s_x</td>" in table        # the planted 1.9 deg/s is 6 sigma out too

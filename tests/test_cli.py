@@ -336,3 +336,113 @@ def test_random_magnetometer_points_are_refused_plainly(table, tmp_path, run_mag
     message = assert_plain_failure(run_magyro("solve", path, "-o", out), 2)
     assert "do not follow" in message and "magnetometer" in message
     assert not out.exists()
+
+
+# --------------------------------------------------------------------------- commands that read alike (issue 24)
+
+
+def _help(*args) -> str:
+    from typer.testing import CliRunner
+
+    from magyro.cli import app
+
+    result = CliRunner().invoke(app, [*args, "--help"], env={"COLUMNS": "250"}, prog_name="magyro")
+    assert result.exit_code == 0, result.output
+    return result.output
+
+
+def _commands():
+    import typer.main
+
+    from magyro.cli import app
+
+    return typer.main.get_command(app).commands
+
+
+def test_help_renders_the_extras_in_brackets():
+    assert "needs magyro[plot])" in _help("report")
+    assert "Needs magyro[dask]" in _help("batch") and "needs magyro[plot];" in _help("batch")
+    assert "(needs magyro[plot])" in _help("solve")
+
+
+def test_usage_lines_name_the_arguments_as_the_help_does():
+    assert "Usage: magyro apply [OPTIONS] SESSION CALIB" in _help("apply")
+    for name, command in _commands().items():
+        for args in ([name, sub] for sub in command.commands) if hasattr(command, "commands") else [[name]]:
+            usage = next(line for line in _help(*args).splitlines() if "Usage:" in line)
+            assert "{" not in usage and "}" not in usage, usage
+
+
+def test_the_summaries_list_every_subcommand_and_format():
+    from magyro.result.export import FORMATS
+
+    commands = _commands()
+    summary_of = {name: command.help.split("\n\n")[0] for name, command in commands.items()}
+    assert all(f"({sub})" in summary_of["import"] for sub in commands["import"].commands), summary_of["import"]
+    assert all(f"({fmt})" in summary_of["export"] for fmt in FORMATS), summary_of["export"]
+    top = " ".join(_help().split())
+    assert "ROS bags (rosbag)" in top and "PX4 .params file (px4)" in top
+
+
+def test_session_comes_before_the_calibration_everywhere():
+    commands = _commands()
+    for name in ("apply", "validate", "report"):
+        arguments = [p.name for p in commands[name].params if p.param_type_name == "argument"]
+        assert arguments == ["session", "calibration"], (name, arguments)
+
+
+def test_no_repair_help_names_every_repair():
+    from magyro.options import Repairs
+
+    for name in ("solve", "observe", "check", "batch"):
+        text = " ".join(_help(name).split())
+        assert all(f"{repair}," in text for repair in Repairs.NAMES), (name, text)
+
+
+@pytest.fixture(scope="module")
+def spiked_clipped(tmp_path_factory):
+    import degrade as D
+
+    path = tmp_path_factory.mktemp("reads_alike") / "spiked.parquet"
+    write_session(D.mag_spikes(D.clip_gyro(D.load("broad-02"), 250.0)), path)
+    return path
+
+
+def _fixes(run_magyro, session, *flags) -> dict:
+    out = session.with_name(f"check{len(flags)}.json")
+    result = run_magyro("check", session, "-q", "-o", out, *flags)
+    assert result.returncode == 0, result.stderr
+    return {(f["kind"], f["sensor"]): f["fix"] for f in json.loads(out.read_text())["findings"]}
+
+
+def test_fix_lines_name_the_flag_and_tell_the_truth_under_no_repair(spiked_clipped, run_magyro):
+    on = _fixes(run_magyro, spiked_clipped)
+    off = _fixes(run_magyro, spiked_clipped, "--no-repair", "spikes", "--no-repair", "saturation")
+    assert on[("spikes", "magnetometer")].startswith("magyro drops them (--no-repair spikes keeps the spikes)")
+    assert "magyro cuts" in on[("saturation", "gyro")] and "--no-repair saturation" in on[("saturation", "gyro")]
+    assert all("Repairs(" not in fix for fix in [*on.values(), *off.values()])
+    for kind, sensor in (("spikes", "magnetometer"), ("saturation", "gyro")):
+        fix = off[(kind, sensor)]
+        assert fix.startswith(f"not repaired (--no-repair {kind}):") and "magyro" not in fix, fix
+    assert off[("held", "magnetometer")] == on[("held", "magnetometer")]   # a repair left on says the same
+
+
+@pytest.mark.parametrize("text, deg_s", [("0.0002rad/s/sqrt(Hz)", math.degrees(2e-4)), ("0.0002 rad/s/√Hz", math.degrees(2e-4)),
+                                         ("0.02", 0.02), ("0.02deg/s/sqrt(Hz)", 0.02), ("5 mdps/sqrt(Hz)", 0.005),
+                                         ("0.6deg/sqrt(h)", 0.01)])
+def test_gyro_noise_takes_its_unit(text, deg_s):
+    from magyro.cli.common import gyro_noise_density
+
+    assert gyro_noise_density(text) == pytest.approx(deg_s, rel=1e-12)
+
+
+def test_gyro_noise_in_rad_s_gives_the_same_result_as_in_deg_s(tmp_path, run_magyro, assert_plain_failure):
+    session = magyro.__file__.replace("magyro/__init__.py", "data/broad-02.parquet")
+    reports = []
+    for value in ("0.0002rad/s/sqrt(Hz)", repr(math.degrees(2e-4))):
+        out = tmp_path / f"{len(reports)}.json"
+        assert run_magyro("observe", session, "-q", "--gyro-noise", value, "-o", out).returncode == 0
+        reports.append(json.loads(out.read_text(), object_hook=lambda d: {k: v for k, v in d.items() if k != "seconds"}))
+    assert reports[0] == reports[1]
+    assert "not a noise density" in run_magyro("observe", session, "--gyro-noise", "2furlongs").stderr
+    assert "must be a positive number" in assert_plain_failure(run_magyro("observe", session, "--gyro-noise", "-1"), 2)

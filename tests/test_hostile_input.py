@@ -159,14 +159,14 @@ def _cuts() -> dict:
 def test_a_calibration_cut_short_is_named_so_by_every_command(folder, cut, command):
     (folder / "cut.json").write_text(_cuts()[cut])
     args = {"export": ["export", "cut.json", "-f", "yaml", "-o", "o.yaml"],
-            "apply": ["apply", "cut.json", "s.parquet", "-o", "o.parquet"],
+            "apply": ["apply", "s.parquet", "cut.json", "-o", "o.parquet"],
             "validate": ["validate", "s.parquet", "cut.json", "-o", "o.json"],
             "report": ["report", "s.parquet", "cut.json", "-o", "o.html"]}[command]
     refused(args, r"cut\.json: a calibration cut short", folder)
 
 
 def test_a_file_given_in_the_wrong_place_is_named_for_what_it_is(folder):
-    refused(["apply", "s.parquet", "good.json", "-o", "o.parquet"], r"s\.parquet: this is a session \(Parquet", folder)
+    refused(["apply", "good.json", "s.parquet", "-o", "o.parquet"], r"s\.parquet: this is a session \(Parquet", folder)
     refused(["validate", "good.json", "s.parquet"], r"good\.json: this is a magyro JSON file \(magyro\.calibration\), "
             "not a session", folder)
 
@@ -189,7 +189,7 @@ def test_a_calibration_without_std_is_applied_validated_and_exported(folder):
     for name in ("nostd.json", "nostdK.json"):
         code, _, err = run("export", name, "-f", "px4", "-o", f"{name}.params", cwd=folder)
         assert code == 0 and (folder / f"{name}.params").is_file(), err
-    code, _, err = run("apply", "nostd.json", "s.parquet", "-o", "a.parquet", cwd=folder)
+    code, _, err = run("apply", "s.parquet", "nostd.json", "-o", "a.parquet", cwd=folder)
     assert code == 0, err
     from magyro.io import load_session
 
@@ -202,14 +202,14 @@ def test_a_calibration_without_std_is_applied_validated_and_exported(folder):
 
 @pytest.fixture
 def calibrated(folder):
-    code, _, err = run("apply", "good.json", "s.parquet", "-o", "cal.parquet", cwd=folder)
+    code, _, err = run("apply", "s.parquet", "good.json", "-o", "cal.parquet", cwd=folder)
     assert code == 0, err
     return folder
 
 
 @pytest.mark.parametrize("command", ["apply", "validate", "report"])
 def test_no_command_applies_a_calibration_to_a_calibrated_session(calibrated, command):
-    args = {"apply": ["apply", "good.json", "cal.parquet", "-o", "o.parquet"],
+    args = {"apply": ["apply", "cal.parquet", "good.json", "-o", "o.parquet"],
             "validate": ["validate", "cal.parquet", "good.json", "-o", "o.json"],
             "report": ["report", "cal.parquet", "good.json", "-o", "o.html"]}[command]
     refused(args, r"cal\.parquet: already calibrated", calibrated)
@@ -217,7 +217,7 @@ def test_no_command_applies_a_calibration_to_a_calibrated_session(calibrated, co
 
 def test_a_calibration_in_another_magnetometer_unit_is_not_applied(folder):
     write_json(folder / "gauss.json", good_calibration("G"))
-    refused(["apply", "gauss.json", "s.parquet", "-o", "o.parquet"],
+    refused(["apply", "s.parquet", "gauss.json", "-o", "o.parquet"],
             r"the magnetometer is in uT, the calibration was made in G", folder)
     refused(["report", "s.parquet", "gauss.json", "-o", "o.html"], r"made in G", folder)
 
@@ -228,7 +228,7 @@ def test_a_calibration_in_another_magnetometer_unit_is_not_applied(folder):
 ])
 def test_apply_refuses_a_matrix_that_would_write_infinities(folder, K_g, message):
     write_json(folder / "k.json", mutated(_set("gyro.K_g", K_g)))
-    refused(["apply", "k.json", "s.parquet", "-o", "o.parquet"], message, folder)
+    refused(["apply", "s.parquet", "k.json", "-o", "o.parquet"], message, folder)
 
 
 @pytest.mark.parametrize("fmt", ["yaml", "c", "kalibr", "px4"])

@@ -360,3 +360,19 @@ def test_cli_unknown_method_is_unusable_input(tmp_path):
     r = magyro("montecarlo", PROBLEM, "--runs", 1, "--method", "lm", cwd=tmp_path)
     assert r.returncode == 2
     assert r.stderr.strip().startswith("magyro: unknown method")
+
+
+def test_a_target_ten_runs_cannot_resolve_is_not_called_a_fail():
+    """issue 24: `montecarlo --runs 10` printed FAIL against targets its own note says 10 runs cannot resolve."""
+    from magyro.studies.montecarlo_table import Row, target_checks, targets_text
+
+    def rows(n, std_over_crlb, err_over_std, rep_over_act):
+        return [Row(f"K_g[{i}]", "K_g", "", 1.0, n, 1.0, 1.0, 1.0, std_over_crlb, err_over_std, rep_over_act)
+                for i in range(6)]
+
+    within_chance = targets_text(target_checks(rows(10, 1.3, 0.5, 0.75)))
+    assert all("not resolvable with 10 runs" in line and "FAIL" not in line for line in within_chance), within_chance
+    assert all("FAIL (K_g[0]" in line for line in targets_text(target_checks(rows(10, 3.0, 0.9, 0.4))))
+    assert all("FAIL (K_g[0]" in line for line in targets_text(target_checks(rows(400, 1.3, 0.5, 0.75))))
+    assert all("PASS" in line for line in targets_text(target_checks(rows(10, 1.0, 0.1, 1.0))))
+    assert target_checks(rows(400, 1.0, 0.1, 1.0))["std_over_crlb"]["resolvable"] is True

@@ -181,7 +181,7 @@ def verdict(row: dict, limits: Limits | None) -> tuple[str, str]:
                 hint = SPLIT_HINT if column == "split_rms_z" else "the calibration did not give it"
                 reasons.append(f"{column} not measured ({hint})")
             elif (abs(value) if absolute else value) > limit:
-                reasons.append(_broken(column, value, limit, unit))
+                reasons.append(_broken(column, value, limit, unit, absolute))
     warnings = kinds_of(row.get("warning_kinds"))
     rejected = warnings if ANY in limits.reject_warnings else [k for k in warnings if k in limits.reject_warnings]
     reasons += [f"warning {k}" for k in rejected]
@@ -232,12 +232,14 @@ def kinds_of(text) -> list[str]:
     return [k for k in (part.strip() for part in text_of(text).split(",")) if k]
 
 
-def _broken(column: str, value: float, limit: float, unit: str) -> str:
+def _broken(column: str, value: float, limit: float, unit: str, absolute: bool = False) -> str:
+    """"bias_deg_s_y = 0.62 > 0.50 deg/s", or for a limit on the absolute value "|bias_deg_s_y| = 0.62 > 0.50 deg/s" (of -0.62)."""
     digits = _decimals(limit)
     shown = abs(value)
     while digits < 9 and f"{shown:.{digits}f}" == f"{limit:.{digits}f}":  # 0.5004 > 0.50 must not read 0.50 > 0.50
         digits += 1
-    return f"{column} = {value:.{digits}f} > {limit:.{digits}f}{' ' + unit if unit else ''}"
+    said = f"|{column}| = {abs(value):.{digits}f}" if absolute else f"{column} = {value:.{digits}f}"
+    return f"{said} > {limit:.{digits}f}{' ' + unit if unit else ''}"
 
 
 def _decimals(limit: float) -> int:

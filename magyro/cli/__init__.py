@@ -22,7 +22,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import typer  # noqa: E402
 
-from magyro.cli.common import fail, run_guarded, version_callback  # noqa: E402,F401  (fail, run_guarded: public)
+from magyro.cli.common import Command, as_written, fail, run_guarded, version_callback  # noqa: E402,F401  (fail, run_guarded: public)
 from magyro.cli.fleet import batch  # noqa: E402
 from magyro.cli.importing import import_app  # noqa: E402
 from magyro.cli.live import watch_command  # noqa: E402
@@ -41,19 +41,19 @@ def main_options(
     """Calibrate a gyroscope with the magnetometer on the same board, no turntable needed."""
 
 
-app.command()(solve)
-app.command()(simulate)
-app.command()(montecarlo)
-app.command()(batch)
+app.command(cls=Command)(as_written(solve))
+app.command(cls=Command)(as_written(simulate))
+app.command(cls=Command)(as_written(montecarlo))
+app.command(cls=Command)(as_written(batch))
 app.add_typer(import_app, name="import")
-app.command("validate")(validate_command)
-app.command("observe")(observe_command)
-app.command("check")(check_command)
-app.command("apply")(apply_command)
-app.command("export")(export_command)
-app.command("report")(report_command)
-app.command("watch")(watch_command)
-app.command("plan")(plan_command)
+app.command("validate", cls=Command)(as_written(validate_command))
+app.command("observe", cls=Command)(as_written(observe_command))
+app.command("check", cls=Command)(as_written(check_command))
+app.command("apply", cls=Command)(as_written(apply_command))
+app.command("export", cls=Command)(as_written(export_command))
+app.command("report", cls=Command)(as_written(report_command))
+app.command("watch", cls=Command)(as_written(watch_command))
+app.command("plan", cls=Command)(as_written(plan_command))
 
 
 def main():

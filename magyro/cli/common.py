@@ -1,13 +1,75 @@
 """What every command of `magyro` shares: one plain message and the exit code of docs/spec.md section 3
-for every failure the user can fix (`fail`, `run_guarded`), and `--version`."""
+for every failure the user can fix (`fail`, `run_guarded`), `--version`, help shown as written
+(`as_written`, `Command`), and the options several commands take alike (`--no-repair`, `--gyro-noise` with
+its unit)."""
 from __future__ import annotations
 
+import inspect
+import math
 import os
+import re
 
 import typer
+from typer.core import TyperCommand
 
 from magyro import __version__
 from magyro.errors import MagyroError
+from magyro.options import Repairs
+
+NO_REPAIR_HELP = (f"Turn a repair of the recording off: {', '.join(Repairs.NAMES)}, or all (repeat, or separate "
+                  "by commas, for several; magyro check lists what each repairs).")
+
+
+def as_written(command):
+    """`command` with its help texts shown as written: rich would take the [plot] of "magyro[plot]" for markup
+    and print "magyro", and would break the summary where the docstring's lines break."""
+    from rich.markup import escape
+
+    if command.__doc__:
+        paragraphs = inspect.cleandoc(command.__doc__).split("\n\n")
+        command.__doc__ = escape("\n\n".join(" ".join(p.split()) for p in paragraphs))
+    for parameter in inspect.signature(command).parameters.values():
+        if getattr(parameter.default, "help", None):
+            parameter.default.help = escape(parameter.default.help)
+    return command
+
+
+# a gyro noise density in deg/s/sqrt(Hz) per unit people write it in (Kalibr and imu_tk: rad/s/sqrt(Hz);
+# datasheets: mdps/sqrt(Hz), or an angle random walk in deg/sqrt(h) = 1/60 deg/s/sqrt(Hz))
+GYRO_DENSITY_UNITS_DEG_S = {"deg/s/sqrt(Hz)": 1.0, "rad/s/sqrt(Hz)": math.degrees(1.0), "mdps/sqrt(Hz)": 1e-3,
+                            "dps/sqrt(Hz)": 1.0, "deg/sqrt(h)": 1.0 / 60.0}
+
+
+def _unit_key(unit: str) -> str:
+    return unit.replace(" ", "").replace("√Hz", "sqrt(Hz)").replace("√h", "sqrt(h)").replace("°", "deg").lower()
+
+
+def gyro_noise_density(value) -> float:
+    """--gyro-noise: a number in deg/s/sqrt(Hz), or a number with one of GYRO_DENSITY_UNITS_DEG_S
+    ("0.0002rad/s/sqrt(Hz)", "0.0002 rad/s/√Hz"); the value in deg/s/sqrt(Hz)."""
+    if isinstance(value, float):
+        return value
+    found = re.fullmatch(r"\s*([-+0-9.eE]+)\s*(.*?)\s*", str(value))
+    factors = {_unit_key(u): f for u, f in GYRO_DENSITY_UNITS_DEG_S.items()}
+    try:
+        density = float(found.group(1)) * factors[_unit_key(found.group(2) or "deg/s/sqrt(Hz)")]
+    except (AttributeError, ValueError, KeyError):
+        raise typer.BadParameter(f"{value!r} is not a noise density: a number in deg/s/sqrt(Hz), or a number with "
+                                 f"one of the units {', '.join(GYRO_DENSITY_UNITS_DEG_S)}") from None
+    return density   # its sign and size: checked by the API, as for a number given from Python
+
+
+def gyro_noise_help(default: str) -> str:
+    return (f"Gyro noise density: a number in deg/s/sqrt(Hz), or with its unit, e.g. 0.0002rad/s/sqrt(Hz) (units: "
+            f"{', '.join(GYRO_DENSITY_UNITS_DEG_S)}). Default: {default}.")
+
+
+class Command(TyperCommand):
+    """A command whose usage line names its arguments as its help does (SESSION CALIB), not in braces."""
+
+    def collect_usage_pieces(self, ctx):
+        return [piece[1:-1] if piece.startswith("{") and piece.endswith("}") else piece
+                for piece in super().collect_usage_pieces(ctx)]
 
 
 def fail(message: str, code: int) -> None:

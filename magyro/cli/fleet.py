@@ -6,13 +6,14 @@ from typing import List, Optional
 
 import typer
 
-from magyro.cli.common import (TARGET_BIAS_OPTION, TARGET_MISALIGNMENT_OPTION, TARGET_NONORTH_OPTION,
-                               TARGET_SCALE_OPTION, TARGETS_OPTION, fail, run_guarded)
+from magyro.cli.common import (NO_REPAIR_HELP, TARGET_BIAS_OPTION, TARGET_MISALIGNMENT_OPTION, TARGET_NONORTH_OPTION,
+                               TARGET_SCALE_OPTION, TARGETS_OPTION, fail, gyro_noise_density, gyro_noise_help,
+                               run_guarded)
 from magyro.options import Repairs
 
 
 def batch(
-    inputs: List[str] = typer.Argument(..., help="Session files, folders of them, globs (quoted), or a manifest CSV with columns device_id,session."),
+    inputs: List[str] = typer.Argument(..., metavar="INPUTS...", help="Session files, folders of them, globs (quoted), or a manifest CSV with columns device_id,session."),
     outdir: Path = typer.Option(..., "-o", "--output", help="Folder for the results (created): calibrations/ID.json, rows/, summary.parquet, summary.csv, summary.html."),
     limits: Optional[Path] = typer.Option(None, "--limits", help="Acceptance limits (TOML, [limits] table; docs/limits-example.toml). Without: every calibrated device is accepted."),
     targets_file: Optional[Path] = TARGETS_OPTION,
@@ -27,9 +28,9 @@ def batch(
     split_check: bool = typer.Option(False, "--split-check", help="Also calibrate each half of every recording alone (about 2x the time); gives the split_rms_z column."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the files' metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
-    gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", help="Gyro noise density, deg/s/sqrt(Hz) (default: estimated per device)."),
+    gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", parser=gyro_noise_density, metavar="DENSITY", help=gyro_noise_help("estimated per device")),
     mag_noise: Optional[float] = typer.Option(None, "--mag-noise", help="Magnetometer noise std, in its unit (default: estimated per device)."),
-    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help="Turn a repair of the recording off: restamp, held, saturation, spikes, or all (repeat for several)."),
+    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help=NO_REPAIR_HELP),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress and no summary on the terminal."),
 ):
     """Many devices: calibrate every session, judge each against the limits, summarise the fleet.

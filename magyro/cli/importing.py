@@ -6,14 +6,15 @@ from typing import List, Optional
 
 import typer
 
-from magyro.cli.common import run_guarded
+from magyro.cli.common import Command, as_written, run_guarded
 
-import_app = typer.Typer(no_args_is_help=True, help="Convert recordings into session files (BROAD trials, CSV exports).")
+import_app = typer.Typer(no_args_is_help=True, help="Convert recordings into session files: BROAD trials (broad), phone or logger CSV exports (csv), PX4 flight logs (ulog), ROS bags (rosbag).")
 
 
-@import_app.command("broad")
+@import_app.command("broad", cls=Command)
+@as_written
 def import_broad_command(
-    trial: Path = typer.Argument(..., help="A BROAD trial file (.mat, or .hdf5/.h5 with h5py installed)."),
+    trial: Path = typer.Argument(..., metavar="TRIAL", help="A BROAD trial file (.mat, or .hdf5/.h5 with h5py installed)."),
     output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv)."),
     movement: bool = typer.Option(False, "--movement", help="Keep only the trial's marked movement phase plus --rest seconds at each end."),
     rest_s: float = typer.Option(3.0, "--rest", min=0.0, help="Seconds of rest kept before and after the movement with --movement."),
@@ -35,9 +36,10 @@ def import_broad_command(
     run_guarded(action)
 
 
-@import_app.command("csv")
+@import_app.command("csv", cls=Command)
+@as_written
 def import_csv_command(
-    sources: List[Path] = typer.Argument(..., help="CSV export(s): one file with a time column and sensor columns, or one file per sensor (gyro, magnetometer, optional accelerometer) merged on time; with --preset also the app's export folder or zip."),
+    sources: List[Path] = typer.Argument(..., metavar="SOURCES...", help="CSV export(s): one file with a time column and sensor columns, or one file per sensor (gyro, magnetometer, optional accelerometer) merged on time; with --preset also the app's export folder or zip."),
     output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv)."),
     preset: Optional[str] = typer.Option(None, "--preset", help="An app's export: sensor-logger or phyphox (files, columns, units and time known; no --gyro-unit/--mag-unit/--map)."),
     column_map: Optional[List[str]] = typer.Option(None, "--map", "-m", help="NAME=COLUMN for session names t gx gy gz mx my mz (ax ay az, qw qx qy qz), e.g. -m gx=gyroX; with several files NAME=FILE:COLUMN, e.g. -m gx=gyro.csv:x -m t=gyro.csv:time. Repeat, or comma-separate. Unmapped names are guessed from common headers."),
@@ -68,9 +70,10 @@ def import_csv_command(
     run_guarded(action)
 
 
-@import_app.command("ulog")
+@import_app.command("ulog", cls=Command)
+@as_written
 def import_ulog_command(
-    log: Path = typer.Argument(..., help="A PX4 ULog file (.ulg)."),
+    log: Path = typer.Argument(..., metavar="LOG", help="A PX4 ULog file (.ulg)."),
     output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv)."),
     instance: int = typer.Option(0, "--instance", min=0, help="Topic instance (multi_id), e.g. 1 for the second gyro and magnetometer."),
     topics: Optional[str] = typer.Option(None, "--topics", help="GYRO,MAG topics, e.g. sensor_combined,vehicle_magnetometer (default: sensor_gyro,sensor_mag when logged fast enough, else sensor_combined with vehicle_magnetometer)."),
@@ -89,9 +92,10 @@ def import_ulog_command(
     run_guarded(action)
 
 
-@import_app.command("rosbag")
+@import_app.command("rosbag", cls=Command)
+@as_written
 def import_rosbag_command(
-    bag: Path = typer.Argument(..., help="A ROS1 bag file (.bag) or a ROS2 bag folder."),
+    bag: Path = typer.Argument(..., metavar="BAG", help="A ROS1 bag file (.bag) or a ROS2 bag folder."),
     output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv)."),
     imu_topic: Optional[str] = typer.Option(None, "--imu-topic", help="The sensor_msgs/msg/Imu topic (default: the bag's only one)."),
     mag_topic: Optional[str] = typer.Option(None, "--mag-topic", help="The magnetometer topic: sensor_msgs/msg/MagneticField, or geometry_msgs/msg/Vector3Stamped of older drivers (default: the bag's only one)."),

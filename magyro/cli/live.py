@@ -16,7 +16,7 @@ from magyro.cli.common import (TARGET_BIAS_OPTION, TARGET_MISALIGNMENT_OPTION, T
 
 
 def watch_command(
-    source: str = typer.Argument(..., help="'-' for standard input, a serial device (/dev/ttyUSB0, COM3; or any path with --serial), or a file being written (followed like tail -f). Lines: t,gx,gy,gz,mx,my,mz, or t,gx,gy,gz,,, and t,,,,mx,my,mz for sensors on lines of their own."),
+    source: str = typer.Argument(..., metavar="SOURCE", help="'-' for standard input, a serial device (/dev/ttyUSB0, COM3; or any path with --serial), or a file being written (followed like tail -f). Lines: t,gx,gy,gz,mx,my,mz, or t,gx,gy,gz,,, and t,,,,mx,my,mz for sensors on lines of their own."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Save what was received as a session file (.parquet or .csv), whatever stops the watch: end of input, --idle, Ctrl-C or SIGTERM."),
     status: Optional[Path] = typer.Option(None, "--status", help="Write every update as a JSON line here (t_s, rank, coverage, predicted_std per group, enough, ...)."),
     serial: bool = typer.Option(False, "--serial", help="SOURCE is a serial port (needs pyserial), whatever its name."),

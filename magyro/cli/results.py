@@ -11,8 +11,8 @@ from magyro.cli.common import (TARGET_BIAS_OPTION, TARGET_MISALIGNMENT_OPTION, T
 
 
 def validate_command(
-    session: Path = typer.Argument(..., help="Session file (.parquet or .csv); truth columns qw qx qy qz are used when present."),
-    calibration: Path = typer.Argument(..., help="Calibration JSON written by magyro solve."),
+    session: Path = typer.Argument(..., metavar="SESSION", help="Session file (.parquet or .csv); truth columns qw qx qy qz are used when present."),
+    calibration: Path = typer.Argument(..., metavar="CALIB", help="Calibration JSON written by magyro solve."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the report JSON here."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write the figure here (.png, .pdf or .svg; needs matplotlib)."),
     series: bool = typer.Option(False, "--series", help="Put the error (or attitude) time series in the JSON too."),
@@ -36,8 +36,8 @@ def validate_command(
 
 
 def apply_command(
-    calibration: Path = typer.Argument(..., help="Calibration JSON written by magyro solve."),
-    session: Path = typer.Argument(..., help="Session file to correct (.parquet or .csv, docs/spec.md section 2)."),
+    session: Path = typer.Argument(..., metavar="SESSION", help="Session file to correct (.parquet or .csv, docs/spec.md section 2)."),
+    calibration: Path = typer.Argument(..., metavar="CALIB", help="Calibration JSON written by magyro solve."),
     output: Path = typer.Option(..., "-o", "--output", help="Corrected session file to write (.parquet or .csv)."),
     frame: str = typer.Option("b", "--frame", help="Frame of the corrected rates: b (the gyro's: K_g y + eps_b) or m (the magnetometer's: K y + eps)."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
@@ -47,7 +47,7 @@ def apply_command(
     from magyro.api import apply_file
 
     def action():
-        s = apply_file(calibration, session, output, frame=frame, gyro_unit=gyro_unit, mag_unit=mag_unit)
+        s = apply_file(session, calibration, output, frame=frame, gyro_unit=gyro_unit, mag_unit=mag_unit)
         typer.echo(f"corrected session written to {output}: {len(s.t_gyro_s)} gyro samples in rad/s (frame {frame}), "
                    f"{len(s.t_mag_s)} magnetometer samples as the unit field")
 
@@ -55,11 +55,12 @@ def apply_command(
 
 
 def export_command(
-    calibration: Path = typer.Argument(..., help="Calibration JSON written by magyro solve."),
+    calibration: Path = typer.Argument(..., metavar="CALIB", help="Calibration JSON written by magyro solve."),
     fmt: str = typer.Option(..., "--format", "-f", help="yaml (a plain, commented YAML file), c (a C99 header with the matrices and apply functions), kalibr (Kalibr's scale-misalignment IMU yaml, exact) or px4 (a QGroundControl .params file: gyro offset only, its cost stated)."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write here (default: print to the terminal)."),
 ):
-    """The calibration for other programs: K_g, bias, C_b_m, K, eps, R, h and the model, as YAML or a C99 header."""
+    """The calibration for other programs: K_g, bias, C_b_m, K, eps, R, h and the model, as YAML (yaml), a C99 header (c),
+    Kalibr's IMU yaml (kalibr) or a PX4 .params file (px4)."""
     from magyro.api import export_file
 
     def action():
@@ -73,8 +74,8 @@ def export_command(
 
 
 def report_command(
-    session: Path = typer.Argument(..., help="The session file the calibration was solved from."),
-    calibration: Path = typer.Argument(..., help="The calibration JSON (magyro solve -o)."),
+    session: Path = typer.Argument(..., metavar="SESSION", help="The session file the calibration was solved from."),
+    calibration: Path = typer.Argument(..., metavar="CALIB", help="The calibration JSON (magyro solve -o)."),
     output: Path = typer.Option(..., "-o", "--output", help="The HTML page to write (self-contained: opens with no network)."),
     split_check: bool = typer.Option(True, "--split-check/--no-split-check", help="Compute the split-half check when the calibration has none (two more solves)."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),

@@ -7,11 +7,11 @@ from typing import Optional
 
 import typer
 
-from magyro.cli.common import fail, run_guarded
+from magyro.cli.common import gyro_noise_density, gyro_noise_help, fail, run_guarded
 
 
 def simulate(
-    problem: str = typer.Argument(..., help="Problem file (TOML, describing a simulated scenario), or the name of one shipped in problems/ (e.g. paper-table1)."),
+    problem: str = typer.Argument(..., metavar="PROBLEM", help="Problem file (TOML, describing a simulated scenario), or the name of one shipped in problems/ (e.g. paper-table1)."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Session file to write (.parquet or .csv); the truth goes beside it as NAME.truth.json. With --seeds: the folder to write the fleet in (created)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Noise seed (default 0; the motion is fixed by the problem)."),
     seeds: Optional[str] = typer.Option(None, "--seeds", help="A fleet: one device per seed, e.g. 0-199, 3 or 1,5,9, each with its own sensor errors drawn from the problem's spread section; writes NAME-SEED.parquet, its truth and manifest.csv into the -o folder."),
@@ -47,7 +47,7 @@ def simulate(
 
 
 def montecarlo(
-    problem: str = typer.Argument(..., help="Problem file (TOML, describing a simulated scenario), or the name of one shipped in problems/ (e.g. paper-table1)."),
+    problem: str = typer.Argument(..., metavar="PROBLEM", help="Problem file (TOML, describing a simulated scenario), or the name of one shipped in problems/ (e.g. paper-table1)."),
     runs: int = typer.Option(..., "--runs", "-n", min=1, help="Number of simulated sessions (noise seeds seed0 .. seed0+N-1)."),
     jobs: int = typer.Option(1, "--jobs", "-j", min=1, help="Solve in this many processes (one BLAS thread each)."),
     method: str = typer.Option("nls", "--method", help="nls, ekf, or nls,ekf to solve the same sessions with both."),
@@ -83,7 +83,7 @@ def montecarlo(
 
 def plan_command(
     duration: float = typer.Option(..., "--duration", help="Length of the recording to plan, s (at least 3; 1 s still at both ends)."),
-    gyro_noise: Optional[float] = typer.Option(None, "--gyro-noise", help="Gyro noise density, deg/s/sqrt(Hz) (default: the base problem's)."),
+    gyro_noise: Optional[float] = typer.Option(None, "--gyro-noise", parser=gyro_noise_density, metavar="DENSITY", help=gyro_noise_help("the base problem's")),
     mag_noise: Optional[float] = typer.Option(None, "--mag-noise", help="Magnetometer noise std per axis, in the base problem's unit (default: the base problem's)."),
     max_rate: float = typer.Option(200.0, "--max-rate", help="Peak body rate of every turn, deg/s (the comparison motions are brought to it too)."),
     base: str = typer.Option("paper-table1", "--base", help="Problem whose sensors (and start pose) the plan is for: a file, or the name of one shipped in problems/."),

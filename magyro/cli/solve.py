@@ -6,16 +6,16 @@ from typing import List, Optional
 
 import typer
 
-from magyro.cli.common import run_guarded
+from magyro.cli.common import gyro_noise_density, gyro_noise_help, NO_REPAIR_HELP, run_guarded
 from magyro.options import Repairs, StdBounds
 
 
 def solve(
-    session: Path = typer.Argument(..., help="Session file (.parquet or .csv, docs/spec.md section 2)."),
+    session: Path = typer.Argument(..., metavar="SESSION", help="Session file (.parquet or .csv, docs/spec.md section 2)."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the calibration JSON here."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
-    gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", help="Gyro noise density, deg/s/sqrt(Hz) (default: estimated)."),
+    gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", parser=gyro_noise_density, metavar="DENSITY", help=gyro_noise_help("estimated")),
     mag_noise: Optional[float] = typer.Option(None, "--mag-noise", help="Magnetometer noise std, in its unit (default: estimated)."),
     stride: Optional[int] = typer.Option(None, "--stride", min=1, help="One attitude node every N segments, one per gyro or magnetometer sample (default: 12, or 4 below 96 Hz; other strides compile their kernels once)."),
     force: bool = typer.Option(False, "--force", help="Solve even when the motion does not excite every parameter."),
@@ -24,7 +24,7 @@ def solve(
     time_offset: bool = typer.Option(True, "--time-offset/--no-time-offset", help="Estimate the magnetometer's lag behind the gyro (default) or fix it to 0."),
     keep_rests: bool = typer.Option(False, "--keep-rests", help="Keep the rests at both ends in the solve (default: trimmed, as the paper does)."),
     split_check: bool = typer.Option(False, "--split-check", help="Also calibrate each half of the recording alone and warn when they disagree beyond their std (about 2x the time)."),
-    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help="Turn a repair of the recording off: restamp, held, saturation, spikes, or all (repeat for several)."),
+    no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help=NO_REPAIR_HELP),
     max_std_scale_ppm: float = typer.Option(StdBounds.scale_ppm, "--max-std-scale-ppm", min=0.0, help="Refusal bound (not the targets): refuse (exit 3) when the predicted one-sigma of a gyro scale factor exceeds this, ppm."),
     max_std_nonorth_deg: float = typer.Option(StdBounds.nonorthogonality_deg, "--max-std-nonorth-deg", min=0.0, help="... of a non-orthogonality angle, deg."),
     max_std_bias_deg_s: float = typer.Option(StdBounds.bias_deg_s, "--max-std-bias-deg-s", min=0.0, help="... of a gyro bias, deg/s."),

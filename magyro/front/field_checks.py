@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from magyro.front import causes, ellipsoid
-from magyro.front.findings import Finding
+from magyro.front.findings import Finding, repairable
 from magyro.session import Session, runs_of_true
 
 NORMALISED_TOLERANCE = 0.01        # every |m| within 1 % of 1
@@ -93,9 +93,10 @@ def saturation(t: np.ndarray, mag: np.ndarray, unit: str) -> tuple[np.ndarray, l
         f"({100 * share:.0f} % in all pinned at the range)", ((float(t[0]), float(t[-1])),),
         "error" if share > MAG_SATURATED_ERROR else "warning",
         "a pinned axis does not measure the field: those samples lie off the ellipsoid and would bend the fit "
-        "and the attitude", "magyro cuts the pinned samples (Repairs(cut_saturation=False) keeps them)"
-        + ("; so few are left that the recording cannot be used: set the magnetometer to a larger range, or move "
-           "it away from the magnet or iron that drives it to its range" if share > MAG_SATURATED_ERROR else ""),
+        "and the attitude", **repairable(
+            "saturation", "magyro cuts the pinned samples", "the pinned samples",
+            "so few are left that the recording cannot be used: set the magnetometer to a larger range, or move "
+            "it away from the magnet or iron that drives it to its range" if share > MAG_SATURATED_ERROR else ""),
         numbers={"fraction": share})]
 
 
@@ -166,9 +167,9 @@ def anomalies(t: np.ndarray, mag: np.ndarray, keep: np.ndarray, unit: str) -> tu
         tuple(stretches), "warning" if homogeneous else "error",
         "the calibration assumes one field along the whole path: a magnet or iron near the device there bends "
         "the ellipsoid and the attitude (a magnet passing for 10 s made a good recording 'too uncertain')",
-        ("magyro cuts those stretches like spikes, and the solve does not cross them "
-         "(Repairs(drop_spikes=False) keeps them)" if homogeneous else
-         "record away from iron, steel furniture and magnets, turning the device in place"),
+        **(repairable("spikes", "magyro cuts those stretches like spikes, and the solve does not cross them",
+                      "those stretches") if homogeneous else
+           {"fix": "record away from iron, steel furniture and magnets, turning the device in place"}),
         numbers={"stretches": len(stretches), "fraction": share, "largest": largest})], True
 
 

@@ -32,6 +32,8 @@ class Finding:
     fix: str = ""                 # what the user or magyro does
     repaired: bool = False        # magyro repaired it (repair_recording)
     numbers: dict = field(default_factory=dict)  # the measured values, machine-readable
+    repair: str = ""              # the repair that fixes it, as `--no-repair` names it (Repairs.NAMES), if any
+    fix_off: str = ""             # the fix when that repair is off (repair_recording puts it in `fix`)
 
     def __post_init__(self):
         if self.kind not in KINDS:   # a new kind must be added to KINDS, where limits files look them up
@@ -41,6 +43,15 @@ class Finding:
         return {"kind": self.kind, "sensor": self.sensor, "severity": self.severity, "message": self.message,
                 "where_s": [[float(a), float(b)] for a, b in self.where_s], "matters": self.matters,
                 "fix": self.fix, "repaired": self.repaired, "numbers": _plain(self.numbers)}
+
+
+def repairable(repair: str, does: str, kept: str, advice: str = "") -> dict:
+    """The fix of a finding that the repair `repair` fixes, as keywords of Finding: what magyro does and the flag
+    that keeps `kept` as recorded, and (fix_off) what is true when that flag is given."""
+    flag = f"--no-repair {repair}"
+    tail = f"; {advice}" if advice else ""
+    return {"repair": repair, "fix": f"{does} ({flag} keeps {kept}){tail}",
+            "fix_off": f"not repaired ({flag}): {kept} are kept as recorded{tail}"}
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from magyro.front import field_checks
-from magyro.front.findings import GAP_PERIODS, SEVERITIES, Finding, RecordingCheck, SensorStats
+from magyro.front.findings import GAP_PERIODS, SEVERITIES, Finding, RecordingCheck, SensorStats, repairable
 from magyro.front.signals import field_turning_findings, saturation, spikes
 from magyro.session import Session
 
@@ -270,10 +270,10 @@ def bursts_finding(sensor, t, dt, short, long, earliest, period, wander=0.0) -> 
         f"each sample is stamped up to {wait * 1e3:.0f} ms late, by a varying amount: the gyro and the "
         "magnetometer no longer line up (host-stamped bursts gave a bias 0.4-0.6 deg/s off, 20-30 sigma, "
         "with exit 0)",
-        ("stamp the samples on the sensor or the microcontroller, or log the sensor's own sample counter"
-         if lost else "magyro restamps the sensor from its sample index (t = a(k) + b k: b fitted, a from the "
-         "earliest arrivals, following drifting clocks); Repairs(restamp_bursts=False) keeps the stamps. "
-         "Better: stamp on the sensor side"),
+        **({"fix": "stamp the samples on the sensor or the microcontroller, or log the sensor's own sample counter"}
+           if lost else repairable("restamp", "magyro restamps the sensor from its sample index (t = a(k) + b k: b "
+                                   "fitted, a from the earliest arrivals, following drifting clocks)",
+                                   "the arrival stamps", "better: stamp on the sensor side")),
         numbers={"short_fraction": float(short.mean()), "wait_s": wait, "period_s": float(period),
                  "earliest_arrival_spread_s": drift, "wander_off_one_line_s": wander})
 
@@ -315,7 +315,7 @@ def held_finding(sensor, t, held, span, row_period) -> Finding:
         ((float(t[0]), float(t[-1])),), "warning" if fraction >= HELD_WARN_FRACTION else "info",
         f"every repeated row counts as a new measurement ({n / len(starts):.2f}x the weight a sample "
         f"deserves) and is stale by up to {(longest - 1) * row_period * 1e3:.1f} ms",
-        "magyro keeps the first row of each run (Repairs(drop_held=False) keeps them all)",
+        **repairable("held", "magyro keeps the first row of each run", "the repeated rows"),
         numbers={"fraction": fraction, "held_rows": n_held, "distinct_rate_hz": distinct_hz,
                  "longest_run": longest})
 
@@ -357,7 +357,9 @@ def overlap_findings(stats: dict) -> list:
                         "that is not its real one (or one stopped early)", where, "warning",
                         f"a {100 * abs(stretch):.1f} % clock error slides the sensors {abs(ends):.2f} s apart by the "
                         "end; the solve fits one constant lag",
-                        "stamp both sensors on one clock (or cut the session to the common span if one stopped early)",
+                        **repairable("clocks", "magyro rescales the magnetometer's times to the gyro's span",
+                                     "the magnetometer's times", "better: stamp both sensors on one clock (or cut "
+                                     "the session to the common span if one stopped early)"),
                         numbers={**numbers, "stretch": stretch})]
     if share < 0.95:
         return [Finding("overlap", "both", text + "; only the common span can be calibrated", where, "info",

@@ -1,7 +1,7 @@
 """The repairs of the recording check where the fix is known, each on by default and each with its switch.
 
     session, check = repair_recording(session, Repairs())            # all four
-    session, check = repair_recording(session, Repairs(drop_held=False))
+    session, check = repair_recording(session, Repairs(drop_held=False))   # --no-repair held
 
 - `restamp_bursts`  a sensor whose stamps come in bursts (buffered data stamped on arrival)
                     gets t_k = a + b k from its sample index, stretch by stretch between gaps;
@@ -74,11 +74,18 @@ def repair_recording(session: Session, repairs: Repairs | None = None) -> tuple[
                        t_mag_s=t_m.copy(), mag=values["magnetometer"][keep["magnetometer"]].copy())
     cut = evidence.saturated if ("saturation", "gyro") in fixed else np.zeros(len(keep["gyro"]), dtype=bool)
     holes = gyro_holes(times["gyro"], keep["gyro"], cut)
-    findings = [replace(f, repaired=True) if (f.kind, f.sensor) in fixed else f for f in check.findings]
+    findings = [replace(f, repaired=True) if (f.kind, f.sensor) in fixed else truthful(f, repairs) for f in check.findings]
     if holes:
         findings.append(holes_finding(holes))
     return repaired, replace(check, findings=tuple(findings), gyro_holes_s=tuple(holes),
                              repairs={name: bool(on) for name, on in repairs.__dict__.items()})
+
+
+def truthful(finding: Finding, repairs: Repairs) -> Finding:
+    """The finding with the fix that is true when its repair was turned off (`--no-repair`)."""
+    if finding.repair and not getattr(repairs, Repairs.NAMES[finding.repair]):
+        return replace(finding, fix=finding.fix_off)
+    return finding
 
 
 def aligned_magnetometer_times(t_m: np.ndarray, lag_s: tuple, lag_at_s: tuple) -> np.ndarray:

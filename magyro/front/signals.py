@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from magyro.front.findings import Finding
+from magyro.front.findings import Finding, repairable
 from magyro.session import runs_of_true
 
 SAT_MIN_DEG_S = 30.0              # nobody's full scale is below this
@@ -64,8 +64,8 @@ def saturation_finding(name, sign, extreme, t, at, begin, end) -> Finding:
         where, "warning",
         "the true rate was beyond the range there: integrating the plateau under-turns the attitude "
         "(10 % of samples clipped gave K_g 0.44 and a bias 4.9 deg/s off with exit 0)",
-        "magyro cuts the saturated samples and never integrates across them (Repairs(cut_saturation=False) "
-        "keeps them); record with a larger gyro range or turn more slowly",
+        **repairable("saturation", "magyro cuts the saturated samples and never integrates across them",
+                     "the saturated samples", "record with a larger gyro range or turn more slowly"),
         numbers={"axis": name, "limit_deg_s": sign * limit, "samples": int(at.sum()), "plateaus": len(begin)})
 
 
@@ -114,7 +114,7 @@ def spikes(t: np.ndarray, mag: np.ndarray, unit: str, held: np.ndarray | None = 
         where, "warning",
         "the ellipsoid fit is least squares: 20 spikes in 7500 samples made it call a good recording "
         "'too little of the sphere' (exit 3)",
-        "magyro drops them (Repairs(drop_spikes=False) keeps them); check the wiring or the I2C bus",
+        **repairable("spikes", "magyro drops them", "the spikes", "check the wiring or the I2C bus"),
         numbers=numbers)]
 
 
@@ -171,13 +171,16 @@ def field_turning_findings(t_g, gyro, t_m, mag) -> tuple[list, tuple]:
             f"{lag[1] * 1e3:.0f} ms at the end: the two clocks run at different rates (about {ppm:+.0f} ppm)",
             where, "warning", f"the solve fits one constant lag: the rest, up to "
             f"{abs(lag[1] - lag[0]) * 500:.0f} ms, turns into attitude error at every rotation",
-            "stamp both sensors on one clock (or rescale the magnetometer's times)", numbers=numbers))
+            **repairable("clocks", "magyro takes the drift of the measured lag (and the lag itself "
+                         "when beyond the solve's search) off the magnetometer's times", "the magnetometer's times",
+                         "better: stamp both sensors on one clock"), numbers=numbers))
     elif max(abs(lag[0]), abs(lag[1])) > SOLVE_LAG_SEARCH_S:
         findings.append(Finding(
             "time_offset", "both", f"the magnetometer lags the gyro by about {np.mean(lag) * 1e3:.0f} ms, more than "
             f"the +/-{SOLVE_LAG_SEARCH_S * 1e3:.0f} ms the solve searches", where, "warning",
             "a lag the solve does not find turns into attitude error at every rotation",
-            f"shift the magnetometer's times by {-np.mean(lag):+.3f} s", numbers=numbers))
+            **repairable("clocks", f"magyro shifts the magnetometer's times by {-np.mean(lag):+.3f} s",
+                         "the magnetometer's times"), numbers=numbers))
     return findings, (tuple(lag), tuple(at))
 
 

@@ -143,7 +143,7 @@ def _read_csv(path: Path):
         found = re.search(rb'"schema"\s*:\s*"(magyro\.[a-z-]+)/', head)
         what = f"a magyro JSON file ({found.group(1).decode()})" if found else "a JSON file"
         raise InputError(f"{path}: this is {what}, not a session; pass a Parquet or CSV session file "
-                         "(validate and report take SESSION then CALIBRATION)")
+                         "(apply, validate and report take SESSION then CALIB)")
     import pandas as pd
 
     try:

@@ -60,7 +60,8 @@ def read_json_object(source, what: str = "calibration", hint: str = "") -> dict:
         raise InputError(f"{where}not a usable path ({one_line(exc)})") from None
     kind = next((name for magic, name in MAGIC if raw.startswith(magic)), None)
     if kind is not None:
-        raise InputError(f"{where}this is {kind}, not a {what}{hint}")
+        order = " (apply, validate and report take SESSION then CALIB)" if kind.startswith("a session") and what == "calibration" else ""
+        raise InputError(f"{where}this is {kind}, not a {what}{hint}{order}")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:

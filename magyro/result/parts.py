@@ -220,7 +220,8 @@ class NoiseReport:
 
     def summary(self, mag_unit: str) -> str:
         """The table's line: each level and where it came from."""
-        return (f"noise: gyro {np.rad2deg(self.gyro_density_rad_s_sqrt_hz):.3g} deg/s/sqrt(Hz) ({self.gyro_source}), "
+        return (f"noise: gyro {np.rad2deg(self.gyro_density_rad_s_sqrt_hz):.3g} deg/s/sqrt(Hz) "
+                f"(= {self.gyro_density_rad_s_sqrt_hz:.3g} rad/s/sqrt(Hz), --gyro-noise; {self.gyro_source}), "
                 f"magnetometer {self.mag_std:.3g} {mag_unit} ({self.mag_source})")
 
     @classmethod
