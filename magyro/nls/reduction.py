@@ -77,10 +77,10 @@ def tridiagonal_blocks(D: ca.DM, b: int = 3) -> tuple[np.ndarray, np.ndarray]:
     return A, B
 
 
-def block_tridiagonal_inverse_diagonal(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """The diagonal blocks of the inverse of a symmetric positive definite block-tridiagonal matrix
-    (diagonal blocks A, upper blocks B), in O(n): Schur complements forward, then the inverse backward
-    (G_k = S_k^-1 + S_k^-1 B_k G_k+1 B_k^T S_k^-1)."""
+def block_tridiagonal_inverse_band(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(diagonal blocks, upper off-diagonal blocks) of the inverse of a symmetric positive definite
+    block-tridiagonal matrix (diagonal blocks A, upper blocks B), in O(n): Schur complements forward, then
+    backward G_k = S_k^-1 + F_k G_k+1 F_k^T and G_k,k+1 = -F_k G_k+1 with F_k = S_k^-1 B_k."""
     n = len(A)
     S_inv = np.empty_like(A)
     S = A[0]
@@ -88,9 +88,16 @@ def block_tridiagonal_inverse_diagonal(A: np.ndarray, B: np.ndarray) -> np.ndarr
         if k:
             S = A[k] - B[k - 1].T @ S_inv[k - 1] @ B[k - 1]
         S_inv[k] = np.linalg.inv(S)
-    G = np.empty_like(A)
+    G, U = np.empty_like(A), np.empty_like(B)
     G[-1] = S_inv[-1]
     for k in range(n - 2, -1, -1):
         F = S_inv[k] @ B[k]
-        G[k] = S_inv[k] + F @ G[k + 1] @ F.T
+        U[k] = -F @ G[k + 1]
+        G[k] = S_inv[k] - U[k] @ F.T
+    return G, U
+
+
+def block_tridiagonal_inverse_diagonal(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """The diagonal blocks of that inverse (`block_tridiagonal_inverse_band`), symmetrised."""
+    G = block_tridiagonal_inverse_band(A, B)[0]
     return 0.5 * (G + G.transpose(0, 2, 1))

@@ -31,6 +31,7 @@ import numpy as np
 from magyro.front import noise
 from magyro.front.prepare import Prepared
 from magyro.nls.information import Reduced, reduce_hessian, tridiagonal_blocks
+from magyro.nls.reduction import block_tridiagonal_inverse_band  # noqa: F401  (also for the tests)
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.solve import (CHI2_3DOF_MEDIAN, gyro_residuals, magnetometer_residuals, problem_parameters)
 
@@ -48,24 +49,6 @@ class VarianceComponents:
     mag_redundancy: float
 
 
-def block_tridiagonal_inverse_band(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(diagonal blocks, upper off-diagonal blocks) of the inverse of a symmetric positive definite
-    block-tridiagonal matrix (diagonal blocks A, upper blocks B): Schur complements forward, then backward
-    G_k = S_k^-1 + F_k G_k+1 F_k^T and G_k,k+1 = -F_k G_k+1 with F_k = S_k^-1 B_k."""
-    n = len(A)
-    S_inv = np.empty_like(A)
-    S = A[0]
-    for k in range(n):
-        if k:
-            S = A[k] - B[k - 1].T @ S_inv[k - 1] @ B[k - 1]
-        S_inv[k] = np.linalg.inv(S)
-    G, U = np.empty_like(A), np.empty_like(B)
-    G[-1] = S_inv[-1]
-    for k in range(n - 2, -1, -1):
-        F = S_inv[k] @ B[k]
-        U[k] = -F @ G[k + 1]
-        G[k] = S_inv[k] - U[k] @ F.T
-    return G, U
 
 
 def inverse_on_pattern(red: Reduced, H_triu: ca.DM) -> np.ndarray:
