@@ -55,7 +55,9 @@ def refused(args, pattern: str, cwd: Path, code: int = 2) -> str:
             del os.environ["MAGYRO_PROGRESS"]
         else:
             os.environ["MAGYRO_PROGRESS"] = saved
-    lines = [line for line in err.strip().splitlines() if not line.startswith("report: ")]   # its progress lines
+    # its progress lines: the report's own, and reading the input (what is wrong may lie in it); any other step is work
+    lines = [line for line in err.strip().splitlines()
+             if not line.startswith(("report: ", "magyro step: reading "))]
     assert exit_code == code, (exit_code, out, err)
     assert len(lines) == 1 and lines[0].startswith("magyro: "), err
     assert "internal error" not in err and "Traceback" not in err, err
