@@ -37,7 +37,7 @@ from magyro.ekf.room import (DisturbanceSensitivity, disturbance_covariance, mea
 from magyro.errors import InputError, ObservabilityError, SolverError
 from magyro.front import ellipsoid
 from magyro.front.initial import with_time_offset
-from magyro.front.noise import integrated_autocorrelation_time
+from magyro.front.noise import whitened_effective_scale
 from magyro.nls.diagnostics import rest_check
 from magyro.nls.information import predicted_std
 from magyro.observability.gate import accuracy_gate, unexcited_directions
@@ -137,7 +137,6 @@ class EKF:
 
 MAX_NOISE_PASSES = 4          # the filter runs again at most 3 times with the magnetometer noise re-weighted
 NOISE_RESCALE_TOLERANCE = 0.2   # ... when the innovations' effective scale is off by more than this (the NLS's)
-CHI2_3DOF_MEDIAN = 2.3660       # median of |e|^2 for a 3-vector of unit normals
 
 
 def noise_factor(filt: StreamingCalibrator, options: Options) -> float | None:
@@ -158,8 +157,7 @@ def noise_factor(filt: StreamingCalibrator, options: Options) -> float | None:
     nu = np.array([v for v, _ in filt.innovations])
     lam, V = np.linalg.eigh(np.array([S for _, S in filt.innovations]))     # S^-1/2 nu, S symmetric
     e = np.einsum("kji,kj->ki", V, nu) / np.sqrt(np.maximum(lam, 1e-300))
-    scale = math.sqrt(float(np.median(np.sum(e * e, axis=1))) / CHI2_3DOF_MEDIAN)
-    factor = scale * math.sqrt(integrated_autocorrelation_time(e))
+    factor = whitened_effective_scale(e)
     return factor if abs(factor - 1.0) > NOISE_RESCALE_TOLERANCE else None
 
 

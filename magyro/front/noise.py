@@ -89,6 +89,18 @@ def integrated_autocorrelation_time(x: np.ndarray) -> float:
     return float(np.mean(taus))
 
 
+CHI2_3DOF_MEDIAN = 2.3660   # median of |r|^2 for a 3-vector of unit normals
+
+
+def whitened_effective_scale(r: np.ndarray) -> float:
+    """The effective scale of whitened 3-vectors r (N, 3), 1 when they are unit white noise: the robust
+    per-sample scale (median of |r|^2 against its chi^2 median) times the square root of their integrated
+    autocorrelation time, so correlated model error (a field not quite homogeneous) counts as what it is, fewer
+    independent samples. The least squares' residuals and the EKF's innovations are both re-weighted by it."""
+    scale = np.sqrt(np.median(np.sum(r**2, axis=1)) / CHI2_3DOF_MEDIAN)
+    return float(scale * np.sqrt(integrated_autocorrelation_time(r)))
+
+
 def effective_std(x: np.ndarray) -> float:
     """RMS over axes of the per-sample std, times sqrt(tau): the white std carrying the same information."""
     per_sample = float(np.sqrt(np.mean(np.var(np.asarray(x, dtype=float), axis=0))))

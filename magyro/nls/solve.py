@@ -34,7 +34,7 @@ MAX_PASSES = 3
 NOISE_RESCALE_TOLERANCE = 0.2     # re-solve when the robust residual scale is off by more than this
 TIME_OFFSET_RELOOK_S2 = 1e-5      # re-solve when tau * (tau - tau0) exceeds this (s^2): the rotation
                                   # error of the gyro look-up at t - tau0/2 scales with it (1 ms at 10 ms)
-CHI2_3DOF_MEDIAN = 2.3660         # median of |r|^2 for a 3-vector of unit normals
+CHI2_3DOF_MEDIAN = noise.CHI2_3DOF_MEDIAN
 
 
 def stretch_bounds(t_s: np.ndarray) -> list[tuple[int, int]]:
@@ -168,14 +168,10 @@ def problem_parameters(problem: JointProblem, prep: Prepared, lin: Linearisation
 def magnetometer_noise_factor(problem: JointProblem, residuals: np.ndarray) -> float:
     """Ratio of the magnetometer residuals' effective scale to the assumed noise (1 when the noise model holds).
 
-    Robust per-sample scale (median of |r|^2 against its chi^2 median) times
-    the square root of the residuals' integrated autocorrelation time, so
-    correlated model error (a field not quite homogeneous) counts as what it
-    is: fewer independent samples. `residuals`: `residual_matrix` at the solution.
+    `noise.whitened_effective_scale` of the magnetometer residuals; `residuals`: `residual_matrix` at the solution.
     """
     r = magnetometer_residuals(residuals, problem.grid.stride)[problem.grid.sample_mask]
-    scale = np.sqrt(np.median(np.sum(r**2, axis=1)) / CHI2_3DOF_MEDIAN)
-    return float(scale * np.sqrt(noise.integrated_autocorrelation_time(r)))
+    return noise.whitened_effective_scale(r)
 
 
 def residual_matrix(problem: JointProblem, x, p) -> np.ndarray:

@@ -7,14 +7,14 @@ from __future__ import annotations
 import numpy as np
 
 from magyro.errors import InputError
+from magyro.io.csv_units import MAG_UNITS
 from magyro.text import escaped
 
 MAX_CONDITION = 1e12          # K_g or R beyond this is singular to double precision
 MAX_GAIN = 1e6                # no sensor's scale factor is a million: such a K_g is not a calibration
-# the magnetometer unit labels magyro writes (magyro/io/csv_export.py MAG_UNITS) that are physical units, in gauss
-GAUSS_PER_UNIT = {"ut": 1e-2, "µt": 1e-2, "μt": 1e-2, "microtesla": 1e-2, "nt": 1e-5, "nanotesla": 1e-5,
-                  "mt": 10.0, "millitesla": 10.0, "g": 1.0, "gauss": 1.0, "mg": 1e-3, "milligauss": 1e-3,
-                  "t": 1e4, "tesla": 1e4}
+GAUSS_PER_LABEL = {"uT": 1e-2, "nT": 1e-5, "mT": 10.0, "T": 1e4, "G": 1.0, "mG": 1e-3}
+# every spelling the importers accept for a physical magnetometer unit (magyro.io.csv_units.MAG_UNITS), in gauss
+GAUSS_PER_UNIT = {key: GAUSS_PER_LABEL[label] for key, label in MAG_UNITS.items() if label in GAUSS_PER_LABEL}
 UNKNOWN_UNITS = ("", "unknown")
 
 
