@@ -221,8 +221,19 @@ class NoiseReport:
     def summary(self, mag_unit: str) -> str:
         """The table's line: each level and where it came from."""
         return (f"noise: gyro {np.rad2deg(self.gyro_density_rad_s_sqrt_hz):.3g} deg/s/sqrt(Hz) "
-                f"(= {self.gyro_density_rad_s_sqrt_hz:.3g} rad/s/sqrt(Hz), --gyro-noise; {self.gyro_source}), "
-                f"magnetometer {self.mag_std:.3g} {mag_unit} ({self.mag_source})")
+                f"(= {self.gyro_density_rad_s_sqrt_hz:.3g} rad/s/sqrt(Hz); "
+                f"{self._origin(self.gyro_source, self.gyro_density_estimated, self.gyro_density_rad_s_sqrt_hz)}), "
+                f"magnetometer {self.mag_std:.3g} {mag_unit} "
+                f"({self._origin(self.mag_source, self.mag_std_estimated, self.mag_std)})")
+
+    @staticmethod
+    def _origin(source: str, before, after: float) -> str:
+        """Where a level came from, and the level before the fit re-weighted it when that moved it (the least squares
+        re-weights a rest level too when its residuals show model error, a field not quite homogeneous)."""
+        if isinstance(before, (int, float)) and not isinstance(before, bool) and before > 0 \
+                and abs(after / before - 1.0) > 0.01 and source != "estimated by the solve":
+            return f"{source} {before:.3g}, re-weighted by the fit's residuals"
+        return source
 
     @classmethod
     def from_dict(cls, data: dict) -> "NoiseReport":
