@@ -28,7 +28,7 @@ from magyro.nls.solve import build_problem, problem_parameters, solve_passes
 from magyro.nls.disturbance import disturbance_covariance
 from magyro.nls.variance import secant_factor, variance_components
 from magyro.nls.trajectory import attitude_trajectory, solved_attitudes
-from magyro.observability.gate import accuracy_gate, accuracy_shortfalls, accuracy_summary, needs_accuracy_check
+from magyro.observability.gate import REFUSAL_BOUND_NOTE, accuracy_gate, accuracy_shortfalls, accuracy_summary, needs_accuracy_check
 from magyro.options import Options
 from magyro.progress import step
 from magyro.result.calibration import Calibration
@@ -112,7 +112,7 @@ def solved_accuracy_gate(cal: Calibration, options: Options) -> list[str]:
     if options.force:
         return [f"solved with --force although the std exceeds its bounds: {summary}{cause}"]
     raise ObservabilityError(f"the calibration is too uncertain to be worth having: {summary}{cause} (--force reports it "
-                             "anyway; the bounds are Options.max_std, --max-std-* on the command line)")
+                             f"anyway; {REFUSAL_BOUND_NOTE})")
 
 
 def gate_checked(prep: Prepared) -> bool:

@@ -239,6 +239,10 @@ def needs_accuracy_check(analysis: ObservabilityAnalysis) -> bool:
     return snr is None or not analysis.full_rank or float(np.min(snr)) < ACCURACY_CHECK_BELOW_SNR
 
 
+REFUSAL_BOUND_NOTE = ("this is the refusal bound, Options.max_std or --max-std-*; the accuracy targets, --targets, "
+                      "are a separate and stricter notion")
+
+
 def accuracy_gate(std, options) -> list[str]:
     """Refuse (ObservabilityError, exit 3) a motion that excites every parameter too weakly for `options.max_std`;
     with `options.force`, the shortfall comes back as a warning instead."""
@@ -251,8 +255,7 @@ def accuracy_gate(std, options) -> list[str]:
 
         raise ObservabilityError(
             f"the motion excites every gyro parameter, but too weakly for a calibration worth having: {summary} "
-            "(--force solves anyway; this is the refusal bound, Options.max_std or --max-std-*; the accuracy targets, "
-            "--targets, are a separate and stricter notion)")
+            f"(--force solves anyway; {REFUSAL_BOUND_NOTE})")
     return [f"solved with --force although the motion is too weak: {summary}"]
 
 
