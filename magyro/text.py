@@ -8,7 +8,10 @@ only printable ASCII. `unsafe_characters(text)` lists what would be escaped, for
 """
 from __future__ import annotations
 
+import math
 import unicodedata
+
+import numpy as np
 
 # bidi controls (embeddings, overrides, isolates, marks): Unicode's own list of what reorders text
 BIDI = frozenset("\u061c\u200e\u200f\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
@@ -98,3 +101,14 @@ def file_name(name: str, what: str) -> str:
         raise InputError(f"{what} '{escaped(str(name)[:MAX_NAME_CHARS])}' cannot name a file ({why}); use letters, "
                          "digits, '-' and '_'")
     return name
+
+
+def significant(value: float, digits: int = 3) -> str:
+    """`value` to `digits` significant digits, written out ("1600", "0.0146", "-0.5"): no exponent between
+    1e-4 and 1e7 (":.3g" writes 1600 as "1.6e+03"), "-" for None and non-finite values."""
+    if value is None or not math.isfinite(value):
+        return "-"
+    rounded = float(f"{value:.{digits}g}")
+    if rounded == 0 or 1e-4 <= abs(rounded) < 1e7:
+        return np.format_float_positional(rounded, trim="-")
+    return f"{rounded:.{digits - 1}e}"

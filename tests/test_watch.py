@@ -19,6 +19,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 from unittest import mock
 
 import numpy as np
@@ -196,6 +197,32 @@ def test_enough_agrees_with_observe_on_the_saved_session(staged, tmp_path):
             assert max(values) <= target
     before = [p for p in predictor.history if p.t_s < enough.prediction.t_s]
     assert before and before[-1].verdict != "sufficient"     # the moment before, observe said not yet
+
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def test_the_readme_demo_reaches_enough_then_asks_for_the_rest_before_stop():
+    """The README's `magyro simulate PROBLEM --stream | magyro watch -`: ENOUGH at the time the README says
+    (within one prediction refresh), before the problem's end rest; ENOUGH asks for END_REST_S still, and once the
+    device lies still that long it says to stop. The watcher's own predictions, inline."""
+    from magyro.live.monitor import END_REST_S
+    from magyro.live.prediction import REFRESH_S
+
+    demo = re.search(r"magyro simulate (\S+) --stream \\\| magyro watch -` \(.*?ENOUGH at about (\d+) s", README.read_text())
+    assert demo, "the README's watch demo and its ENOUGH time"
+    problem, said_s = load_problem(demo.group(1)), float(demo.group(2))
+    session = sim.simulate(problem, 0)[0]
+    mon = ExcitationMonitor(predictor=Predictor("inline"))
+    at_enough = feed(mon, session, stop=lambda s: s.enough)[-1]
+    assert at_enough.enough, "the demo never reaches ENOUGH"
+    assert abs(mon.enough_at_s - said_s) <= REFRESH_S
+    assert mon.enough_at_s < problem.duration_s - problem.motion.rest_end_s
+    assert f"leave it still for {END_REST_S:g} s" in at_enough.instruction and "now" not in at_enough.instruction
+    mon.predictor = None
+    last = feed(mon, session)[-1]
+    assert last.enough and last.still_s >= END_REST_S
+    assert last.instruction.startswith("ENOUGH, and still for") and "stop the recording now" in last.instruction
 
 
 # --------------------------------------------------------------------------- the command line

@@ -18,15 +18,14 @@ import time
 
 from magyro.live.monitor import Status
 from magyro.live.prediction import GROUP_LABELS, GROUPS
+from magyro.text import significant
 
 PLAIN_EVERY_S = 1.0
 REFRESH_PER_SECOND = 8
 
 
 def fmt(v: float | None) -> str:
-    if v is None or not math.isfinite(v):
-        return "-"
-    return f"{v:.3g}"
+    return significant(v)
 
 
 def predicted_text(status: Status) -> str:
@@ -40,7 +39,7 @@ def plain_line(status: Status, counts=None) -> str:
     skipped = f", {counts.skipped} lines skipped" if counts is not None and counts.skipped else ""
     head = (f"t {status.t_s:7.1f} s  rank {status.rank:2d}/12  coverage {100 * status.coverage:3.0f}%  "
             f"std {predicted_text(status)}")
-    tail = "ENOUGH" if status.enough else status.instruction
+    tail = status.instruction
     return f"magyro watch: {head}  | {tail}{skipped}"
 
 
@@ -55,7 +54,7 @@ class PlainDisplay:
         self._key = None
 
     def show(self, status: Status, counts=None) -> None:
-        key = (status.rank, status.field_source, status.enough, status.predicted is None)
+        key = (status.rank, status.field_source, status.enough, status.predicted is None, status.instruction[:12])
         now = self.clock()
         if key != self._key or now - self._last >= self.every_s:
             print(plain_line(status, counts), file=self.stream, flush=True)
@@ -121,7 +120,7 @@ class RichDisplay:
             when += ("; " if when else "") + "predicting..."
         parts = [head, table, Text(when, style="dim")]
         if status.enough:
-            parts.append(Text(f"ENOUGH (since {status.enough_at_s:.1f} s): stop the recording (Ctrl-C)",
+            parts.append(Text(f"{status.instruction} (ENOUGH since {status.enough_at_s:.1f} s)",
                               style="bold white on green"))
         else:
             parts.append(Text("next: " + status.instruction, style="bold cyan"))

@@ -48,6 +48,7 @@ import numpy as np
 from magyro.errors import InputError
 from magyro.front import ellipsoid
 from magyro.front.noise import white_noise_std
+from magyro.front.rests import WINDOW_S, still_prefix_s
 from magyro.observability.advice import direction_advice
 from magyro.live.prediction import GROUPS, Prediction, Predictor, meets, targets_dict
 from magyro.observability.gate import FLOOR_FACTOR, NUMERICAL_RTOL, directional_rank
@@ -60,6 +61,8 @@ DT_WINDOW = 4096            # gyro steps whose median sets the hole threshold (t
 MIN_NOISE_SAMPLES = 50      # per sensor, before the noise levels (and so any rank) are given
 EARLY_REFRESH_S = 0.5       # refresh interval while fewer than NOISE_WINDOW samples are in
 TURN_DEG = 90               # the turn the instruction asks for
+END_REST_S = 2.0            # after ENOUGH, the device is put down this long before the recording stops: the end
+                            # rest (front.rests) gives the bias check and, with the start rest, the noise levels
 AXES = "xyz"
 
 
@@ -116,6 +119,7 @@ class Status:
     predicting: bool                # a prediction is being computed
     enough: bool                    # the latest prediction meets every target
     enough_at_s: float | None       # data time of the first prediction that met them
+    still_s: float = 0.0            # how long the gyro has been still at the end of the data (s; 0 before ENOUGH)
 
     @property
     def predicted(self) -> dict | None:
@@ -136,8 +140,17 @@ class Status:
                 g: (v if math.isfinite(v) else None) for g, v in self.predicted.items()},
             "predicted_at_s": None if p is None else round(p.t_s, 6),
             "verdict": None if p is None else p.verdict, "targets": self.targets,
-            "enough": self.enough, "enough_at_s": self.enough_at_s, "instruction": self.instruction,
+            "enough": self.enough, "enough_at_s": self.enough_at_s, "still_s": round(self.still_s, 6),
+            "instruction": self.instruction,
         }
+
+
+def enough_instruction(still_s: float) -> str:
+    """ENOUGH's instruction: rest the device first (`END_REST_S`), then stop."""
+    if still_s >= END_REST_S:
+        return f"ENOUGH, and still for {still_s:.1f} s: stop the recording now (Ctrl-C)"
+    return (f"ENOUGH: the motion meets every target; put the device down and leave it still for {END_REST_S:g} s, "
+            "then stop the recording (Ctrl-C)")
 
 
 # --------------------------------------------------------------------------- the monitor
@@ -341,15 +354,25 @@ class ExcitationMonitor:
         instruction, detail = self._instruction(rank, V, snr)
         p = self.prediction
         enough = bool(rank == 12 and p is not None and meets(p, self.targets))
+        still_s = self.still_at_end_s() if enough else 0.0
         return Status(
             t_s=t_s, gyro_samples=self.gyro.n, mag_samples=self.mag.n, rank=int(rank), noise_floor=floor,
             eigenvalues=lam_sorted / top, signal_to_noise=snr, condition=condition,
             coverage=float(self._cells.mean()), cells_visited=int(self._cells.sum()),
             field_source="ellipsoid fit" if self.fit is not None else "raw readings (no fit yet)",
-            instruction="ENOUGH: the motion meets every target; stop the recording (Ctrl-C)" if enough else instruction,
+            instruction=enough_instruction(still_s) if enough else instruction,
             detail=detail, targets=targets_dict(self.targets), prediction=p,
             predicting=bool(self.predictor is not None and self.predictor.busy), enough=enough,
-            enough_at_s=self.enough_at_s)
+            enough_at_s=self.enough_at_s, still_s=still_s)
+
+    def still_at_end_s(self) -> float:
+        """How long the gyro has been still at the end of the data (the rests' own rule, `front.rests`)."""
+        g = self.gyro.view()
+        recent = g[g[:, 0] >= g[-1, 0] - 2 * END_REST_S - WINDOW_S]
+        if len(recent) < 5 or self.gyro_std <= 0:
+            return 0.0
+        t_back_s = recent[-1, 0] - recent[::-1, 0]
+        return still_prefix_s(t_back_s, recent[::-1, 1:], np.full(3, self.gyro_std))
 
     def _instruction(self, rank: int, V: np.ndarray, snr: np.ndarray) -> tuple[str, str]:
         """The motion to make next, in one short line, and the longer advice (`advice.direction_advice`)."""

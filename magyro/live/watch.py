@@ -17,6 +17,8 @@ import signal
 import time
 from dataclasses import dataclass
 
+from magyro.text import significant
+
 UPDATE_EVERY_S = 0.05      # the monitor takes in new samples at most this often (wall clock) ...
 IDLE_UPDATE_S = 0.25       # ... and at least this often while the input waits (a prediction may come in)
 DEFAULT_FILE_IDLE_S = 10.0
@@ -216,6 +218,18 @@ def _final_prediction(monitor, targets):
         monitor.predictor = predictor
 
 
+def enough_summary(enough_at_s, status) -> str:
+    """ENOUGH (when) and whether the recording ended with the rest ENOUGH asked for."""
+    from magyro.live.monitor import END_REST_S
+
+    if enough_at_s is None:
+        return "not enough yet: " + status.instruction
+    if status.still_s >= END_REST_S:
+        return f"ENOUGH since {enough_at_s:.1f} s, ended after {status.still_s:.1f} s still"
+    return (f"ENOUGH since {enough_at_s:.1f} s, but ended {status.still_s:.1f} s after the device was last turned "
+            f"(put it down {END_REST_S:g} s before you stop: the end rest checks the bias)")
+
+
 def summary(reason: str, monitor, status, counts, saved: bool, output) -> str:
     parts = [f"magyro watch: {reason}; {counts.gyro} gyro, {counts.mag} magnetometer samples"]
     if counts.skipped:
@@ -224,10 +238,9 @@ def summary(reason: str, monitor, status, counts, saved: bool, output) -> str:
         parts.append(f"{status.t_s:.1f} s, rank {status.rank}/12, coverage {100 * status.coverage:.0f}%")
         p = status.predicted
         if p is not None:
-            parts.append("predicted 1-sigma " + ", ".join(f"{g} {v:.3g} (target {status.targets[g]:g})"
+            parts.append("predicted 1-sigma " + ", ".join(f"{g} {significant(v)} (target {significant(status.targets[g])})"
                                                           for g, v in p.items()))
-        parts.append(f"ENOUGH since {monitor.enough_at_s:.1f} s" if monitor.enough_at_s is not None
-                     else "not enough yet: " + status.instruction)
+        parts.append(enough_summary(monitor.enough_at_s, status))
     if output is not None:
         parts.append(f"session written to {output}" if saved else "nothing to save (no gyro or no magnetometer sample)")
     return "; ".join(parts)
