@@ -87,7 +87,9 @@ def marker(name: str, end: str) -> str:
 
 
 def block_pattern(name: str) -> re.Pattern:
-    return re.compile(re.escape(marker(name, "start")) + r"\n(.*?)\n?" + re.escape(marker(name, "end")), flags=re.S)
+    """A block: its own lines between the marker lines, or (inline) a phrase between markers within a line."""
+    return re.compile(re.escape(marker(name, "start")) + r"(\n?)(.*?)(\n?)" + re.escape(marker(name, "end")),
+                      flags=re.S)
 
 
 def block_in_page(text: str, name: str) -> str:
@@ -95,7 +97,16 @@ def block_in_page(text: str, name: str) -> str:
     m = block_pattern(name).search(text)
     if not m:
         raise ValueError(f"no {marker(name, 'start')} ... {marker(name, 'end')} block in the page")
-    return m.group(1)
+    return m.group(2)
+
+
+def rewritten(m: re.Match, name: str, body: str) -> str:
+    """A block's markers around `body`, on their own lines unless the block sits inside a line."""
+    inline = not m.group(1) and not m.group(3) and "\n" not in m.group(2)
+    if inline and "\n" in body:
+        raise ValueError(f"block {name} sits inside a line; its text must be one line")
+    sep = "" if inline else "\n"
+    return f"{marker(name, 'start')}{sep}{body}{sep}{marker(name, 'end')}"
 
 
 def block_names_in_page(text: str) -> list[str]:
@@ -107,8 +118,7 @@ def with_blocks(text: str, new: dict[str, str]) -> str:
     """The page with every block's text replaced by `new`'s."""
     for name, body in new.items():
         block_in_page(text, name)   # the markers must be there
-        text = block_pattern(name).sub(lambda _: f"{marker(name, 'start')}\n{body}\n{marker(name, 'end')}", text,
-                                       count=1)
+        text = block_pattern(name).sub(lambda m: rewritten(m, name, body), text, count=1)
     return text
 
 
