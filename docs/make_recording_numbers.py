@@ -4,37 +4,36 @@
     python docs/make_recording_numbers.py --check [PAGE]   exit 1 when the page is stale, change nothing
 
 The page's numbers sit between `<!-- numbers:NAME:start -->` and `<!-- numbers:NAME:end -->`
-markers; `blocks()` makes every block anew:
+markers (docs/doc_blocks.py rewrites and checks them); `blocks()` makes every block anew:
 
 - simulated sessions of problems/phone-module.toml (noise seed 0) with its duration, pace
   (the motion's frequency band), rests or motion changed (`dataclasses.replace`), or its
   field made to wander (`magyro.studies.simulate.with_field_disturbance`), each through
   `magyro.observe`: rank, time to full rank, rates, sphere visited, predicted std, verdict;
-- the shipped real BROAD trial data/broad-02.parquet and degraded copies of it
-  (tests/degrade.py) through the recording check (`magyro.front.repairs.repair_recording`,
-  what `magyro check` runs);
-- the thresholds, read from the code's constants;
-- the BROAD room numbers quoted from docs/real-data.md (sections 1 and 2, where they are
-  measured), so the quote follows its source.
+- the rest rules and targets, read from the code's constants;
+- the recording check's rules, broad-02 and its degraded copies through the check, and the BROAD
+  room numbers quoted from docs/real-data.md (docs/recording_check_numbers.py).
 
-Numbers have 3 significant digits. The whole regeneration takes a few seconds.
-tests/test_recording_doc.py imports this script and fails when the page and the tool disagree.
+Numbers have 3 significant digits. The whole regeneration takes a few seconds (and one solve of
+broad-02). tests/test_recording_doc.py imports this script and fails when the page and the tool disagree.
 """
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
-import re
 import sys
 from pathlib import Path
 
 import numpy as np
 
-DOCS = Path(__file__).resolve().parent
-ROOT = DOCS.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import doc_blocks  # noqa: E402
+from doc_blocks import (DOCS, block_in_page, fmt, g, marker, notes, stale, table,  # noqa: E402,F401
+                        with_blocks)
+from recording_check_numbers import (REAL_DATA, broad_block, check_block, check_rules_block,  # noqa: E402,F401
+                                     recording_checks, section, shipped_calibration)
+
 PAGE = DOCS / "recording.md"
-REAL_DATA = DOCS / "real-data.md"
-DEGRADE = ROOT / "tests" / "degrade.py"
+COMMAND = "python docs/make_recording_numbers.py"
 
 PROBLEM = "phone-module"
 SEED = 0
@@ -52,49 +51,9 @@ MOTIONS = (  # label, theorem's rank (docs/observability.md), motion changes (No
      {"kind": "sequential", "axes": ("x", "y", "z"), "amplitude_deg": np.array([120.0, 120.0, 120.0])}),
     ("about all three at once (the problem's own)", 12, None),
 )
-CHECK_CASES = (  # the degradations of tests/degrade.py shown, by name and arguments, applied to broad-02
-    ("burst_stamps", ()),
-    ("drifting_burst_stamps", ()),
-    ("clip_gyro", (250.0,)),
-    ("hole", (80.0, 30.0)),
-    ("mag_spikes", ()),
-    ("clip_mag", (0.1,)),
-    ("magnet_pass", ()),
-    ("held_mag", ()),
-    ("mag_time_offset", (0.3,)),
-    ("mag_clock_drift", (20000.0,)),
-    ("wrong_time_unit", ()),
-    ("gyro_in_deg_s_labelled_rad_s", ()),
-)
 BLOCK_NAMES = ("targets", "duration", "pace", "motion", "rest-rules", "rests", "room", "broad", "check-rules",
                "check")
 
-
-def marker(name: str, end: str) -> str:
-    return f"<!-- numbers:{name}:{end} -->"
-
-
-# --------------------------------------------------------------------------- helpers
-
-
-def fmt(x) -> str:
-    """3 significant digits, as `magyro observe` prints them."""
-    from magyro.observability.report import fmt as tool_fmt
-
-    return tool_fmt(x)
-
-
-def g(x) -> str:
-    """A constant of the code as written (no trailing zeros)."""
-    return f"{x:g}"
-
-
-def load_degrade():
-    """tests/degrade.py (a script of the repository, not part of the package) as a module."""
-    spec = importlib.util.spec_from_file_location("degrade", DEGRADE)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def scenario(**changes):
@@ -144,13 +103,6 @@ def full_rank(report) -> str:
 def typical_rate_deg_s(report) -> float:
     """RMS of |w| over the analysed span (rests trimmed, bias taken out), deg/s."""
     return float(np.sqrt(np.mean(np.sum(np.asarray(report.rates_deg_s) ** 2, axis=1))))
-
-
-def table(header: list[str], rows: list[list[str]], left: tuple = (0, -1)) -> str:
-    """A Markdown table: the columns `left` (indices) left-aligned, the others (numbers) right-aligned."""
-    lefts = {i % len(header) for i in left}
-    align = ["---" if i in lefts else "---:" for i in range(len(header))]
-    return "\n".join("| " + " | ".join(r) + " |" for r in [header, align, *rows])
 
 
 STD_HEADER = ["scale (ppm)", "non-orthogonality (deg)", "bias (deg/s)", "misalignment (deg)"]
@@ -291,10 +243,6 @@ def compared(ratio: float) -> str:
     return "better than" if ratio < 0.9 else "about as well as" if ratio <= 1.1 else "less well than"
 
 
-def notes(lines: list[str]) -> str:
-    return "\n".join(f"- {line}" for line in lines)
-
-
 def room_block(reports: dict) -> str:
     clean = gyro_stds(reports["room", 0.0])
     rows = []
@@ -312,138 +260,6 @@ def room_block(reports: dict) -> str:
                   "std / homogeneous std (median of 12)", "verdict"], rows) + "\n\n" + notes([
         f"A field that wanders by {100 * ROOM_WANDER[2]:g} % multiplies the std by {fmt(ratio)}.",
         f"What `magyro observe` says then: \"{one.reason}\"."])
-
-
-# --------------------------------------------------------------------------- BROAD, quoted from docs/real-data.md
-
-
-def section(text: str, number: int) -> str:
-    m = re.search(rf"^## {number}\. .*?(?=^## |\Z)", text, flags=re.S | re.M)
-    if not m:
-        raise ValueError(f"docs/real-data.md has no section {number}")
-    return m.group(0)
-
-
-def span(values) -> str:
-    values = list(values)
-    lo, hi = min(values), max(values)
-    return f"{lo:g}-{hi:g}"
-
-
-def broad_block(text: str | None = None) -> str:
-    """The room and lag numbers of the undisturbed BROAD trials, as docs/real-data.md sections 1 and 2 give them."""
-    text = text if text is not None else REAL_DATA.read_text(encoding="utf-8")
-    rows2 = re.findall(r"^\| (\d\d) \| ([\d.]+), ([\d.]+) \| ([\d.]+) \|", section(text, 2), flags=re.M)
-    rows1 = re.findall(r"^\| (\d\d) \|(?:[^|]*\|){3} ([\d.]+) \|", section(text, 1), flags=re.M)
-    if not rows2 or not rows1:
-        raise ValueError("docs/real-data.md: the tables of sections 1 and 2 are not where this script looks")
-    trials = ", ".join(t for t, *_ in rows2)
-    return (f"On the undisturbed BROAD trials ({trials}; docs/real-data.md, section 2) magyro measured a field "
-            f"that wanders by {span(float(w) for _, w, _, _ in rows2)} % of the field along the path, with a "
-            f"correlation time of {span(float(c) for _, _, c, _ in rows2)} s. Counting it made the std "
-            f"{span(float(x) for _, _, _, x in rows2)} times the homogeneous-field std (median over the "
-            f"parameters). That was a lab with optical cameras, not a workshop. magyro found the magnetometer "
-            f"lagging the gyro by {span(float(x) for _, x in rows1)} ms (section 1, trials "
-            f"{', '.join(t for t, _ in rows1)}).")
-
-
-# --------------------------------------------------------------------------- the recording check
-
-
-def check_rules_block() -> str:
-    from magyro.front import causes
-    from magyro.front import field_checks as fc
-    from magyro.front import recording as rec
-    from magyro.front import signals as sig
-    from magyro.front.findings import GAP_PERIODS
-    from magyro.io.checks import MAX_PLAUSIBLE_STEP_S, MIN_PLAUSIBLE_STEP_S
-    from magyro.nls.diagnostics import MAX_FIELD_CHANGE
-    from magyro.result.consistency import MAX_HALF_Z, MAX_RMS_Z
-
-    return "\n".join([
-        f"- **units (time)**: the median gyro step must lie between {g(MIN_PLAUSIBLE_STEP_S)} s and "
-        f"{g(MAX_PLAUSIBLE_STEP_S)} s; otherwise the time is not in seconds (error, exit 2).",
-        "- **units (gyro)**: the gyro must turn the field as fast as the magnetometer sees it turn; deg/s read as "
-        "rad/s, or the reverse, is an error (exit 2).",
-        f"- **bursts**: at least {100 * rec.BURST_MIN_SHORT_FRACTION:g} % of the intervals shorter than "
-        f"{g(rec.BURST_SHORT_PERIODS)} period, and at least {rec.BURST_MIN_LONG} waits longer than "
-        f"{g(rec.BURST_LONG_PERIODS)} periods. magyro restamps the sensor from its sample index; when the "
-        f"earliest arrival of each burst wanders more than {g(rec.RESTAMP_WANDER_PERIODS)} period (or "
-        f"{g(1e3 * rec.RESTAMP_WANDER_S)} ms) off one line, the two clocks drift and the restamp follows them, "
-        f"{g(rec.RESTAMP_WINDOW_S)} s at a time; if they still wander by {g(rec.RESTAMP_TRUST_PERIODS)} periods, "
-        "no restamp can be trusted (error, exit 2, naming the sensor's clock).",
-        f"- **gaps**: an interval longer than {g(GAP_PERIODS)} periods. magyro never integrates the gyro across "
-        "one.",
-        f"- **held samples**: at least {rec.HELD_MIN_ROWS} rows, and {100 * rec.HELD_MIN_FRACTION:g} % of them, "
-        f"repeat the previous row exactly (a warning from {100 * rec.HELD_WARN_FRACTION:g} %). magyro keeps the "
-        "first row of each run.",
-        f"- **saturation**: at least {sig.SAT_MIN_SAMPLES} gyro samples at exactly one extreme beyond "
-        f"{g(sig.SAT_MIN_DEG_S)} deg/s, on {sig.SAT_MIN_RUNS} plateaus, or entered by a step of "
-        f"{100 * sig.SAT_STEEP_FRACTION:g} % of the range, or held for {sig.SAT_LONG_RUN} samples. magyro cuts "
-        "them out.",
-        f"- **spikes**: a magnetometer sample off the median of its four neighbours by {g(sig.SPIKE_SPREAD)} x "
-        f"({g(sig.SPIKE_NOISE)} noise stds + the neighbours' spread), the fresh readings only when most rows "
-        f"are held. magyro drops it, unless more than {100 * sig.SPIKE_MAX_FRACTION:g} % of the samples (and more "
-        f"than {sig.SPIKE_ALWAYS}) look so: that is the noise's shape, reported, nothing dropped.",
-        f"- **magnetometer units and faults**: readings of length 1 everywhere (normalised by the logger) and an "
-        "axis that never changes (stuck) are errors (exit 2); an axis at exactly its extreme in "
-        f"{100 * fc.MAG_SAT_MIN_FRACTION:g} % of the samples or more, on {fc.MAG_SAT_MIN_RUNS} runs, "
-        f"{g(fc.MAG_SAT_DOMINANCE)}x as often as any value inside the range, is saturated: cut, and an error "
-        f"beyond {100 * fc.MAG_SATURATED_ERROR:g} % of the samples; new values slower than {g(fc.SLOW_MAG_HZ)} Hz "
-        "are a warning.",
-        f"- **field anomalies**: stretches of {g(fc.ANOMALY_MIN_S)} s or more where the field's magnitude is off "
-        f"the ellipsoid of the rest by {100 * fc.ANOMALY_MIN_SIZE:g} % and {g(fc.ANOMALY_NOISE)} robust stds (a "
-        "magnet passing by) are cut like spikes; the solve does not cross them. Over "
-        f"{100 * fc.ANOMALY_ERROR:g} % of the samples, the field is not homogeneous (error, exit 2).",
-        "- **no ellipsoid** (the gate, `magyro.front.causes`): judged against the gyro, in this order: the "
-        f"device turned less than {g(causes.SMALL_TURN_DEG)} deg, or about one axis only (that axis tilted "
-        f"less than {g(causes.SINGLE_AXIS_TILT_DEG)} deg): exit 3, naming it; it turned "
-        f"{g(causes.EVERY_AXIS_TURN_DEG)} deg or more about every axis, and {g(causes.FAR_SPAN_DEG)} deg from "
-        "its first attitude: the magnetometer does not follow or "
-        "the field is not homogeneous (exit 2); else too little of the sphere (exit 3).",
-        f"- **clocks**: the solve searches a magnetometer lag within +/-{g(1e3 * sig.SOLVE_LAG_SEARCH_S)} ms; a "
-        f"larger lag, or one that changes by more than {g(1e3 * sig.DRIFT_MIN_S)} ms from start to end, is "
-        "flagged and the magnetometer's times are shifted.",
-        f"- **jitter** (info): a robust std of the intervals over {100 * rec.JITTER_WARN_FRACTION:g} % of the "
-        "period.",
-        "- **after the solve** (`magyro solve`, not the check): a warning when the calibrated field's magnitude "
-        "changes by more than "
-        f"{100 * MAX_FIELD_CHANGE:g} % (iron or a magnet near the path), and with `--split-check` when the two "
-        f"halves disagree (RMS z over {g(MAX_RMS_Z)}, or one parameter over {g(MAX_HALF_Z)}).",
-    ])
-
-
-def escape(text: str) -> str:
-    return text.replace("|", "\\|")
-
-
-def check_block(checks: dict | None = None) -> str:
-    """The clean trial's findings, then what each degradation adds (findings whose kind, sensor and severity the
-    clean trial does not have)."""
-    checks = checks or recording_checks()
-    clean_label, clean = checks[0]
-    seen = {(f.kind, f.sensor, f.severity) for f in clean.findings}
-    rows = []
-    for i, (label, check) in enumerate(checks):
-        for f in check.findings:
-            if i and (f.kind, f.sensor, f.severity) in seen:
-                continue
-            rows.append([label, f"`{f.kind}` ({f.sensor})", f.severity, "yes" if f.repaired else "no",
-                         escape(f.message)])
-    return table(["recording", "finding", "severity", "repaired", "what `magyro check` says"], rows, left=range(5))
-
-
-def recording_checks() -> list:
-    """[(label, RecordingCheck)]: broad-02 as shipped, then each degradation of CHECK_CASES."""
-    from magyro.front.repairs import repair_recording
-
-    degrade = load_degrade()
-    clean = degrade.load("broad-02")
-    out = [("broad-02 as shipped", repair_recording(clean)[1])]
-    for name, args in CHECK_CASES:
-        bad = getattr(degrade, name)(clean, *args)
-        out.append((bad.metadata["degraded"], repair_recording(bad)[1]))
-    return out
 
 
 # --------------------------------------------------------------------------- the page
@@ -468,68 +284,21 @@ def simulated_reports() -> dict:
     return reports
 
 
-def blocks() -> dict[str, str]:
-    """Every numbers block of the page, as the tool makes it now."""
+def blocks(shipped=None) -> dict[str, str]:
+    """Every numbers block of the page, as the tool makes it now; `shipped`: (session, Calibration) of
+    data/broad-02.parquet when already solved."""
     reports = simulated_reports()
+    _, cal = shipped or shipped_calibration()
     out = {"targets": targets_block(), "duration": duration_block(reports), "pace": pace_block(reports),
            "motion": motion_block(reports), "rest-rules": rest_rules_block(), "rests": rests_block(reports),
-           "room": room_block(reports), "broad": broad_block(), "check-rules": check_rules_block(),
+           "room": room_block(reports), "broad": broad_block(cal.time_offset_s), "check-rules": check_rules_block(),
            "check": check_block()}
     assert tuple(out) == BLOCK_NAMES
     return out
 
 
-def block_pattern(name: str) -> re.Pattern:
-    return re.compile(re.escape(marker(name, "start")) + r"\n(.*?)\n?" + re.escape(marker(name, "end")), flags=re.S)
-
-
-def block_in_page(text: str, name: str) -> str:
-    """The text between a block's markers ("" when there is none yet)."""
-    m = block_pattern(name).search(text)
-    if not m:
-        raise ValueError(f"no {marker(name, 'start')} ... {marker(name, 'end')} block in the page")
-    return m.group(1)
-
-
-def blocks_in_page(text: str) -> dict[str, str]:
-    return {name: block_in_page(text, name) for name in BLOCK_NAMES}
-
-
-def with_blocks(text: str, new: dict[str, str]) -> str:
-    """The page with every block's text replaced by `new`'s."""
-    for name, body in new.items():
-        block_in_page(text, name)   # the markers must be there
-        text = block_pattern(name).sub(lambda _: f"{marker(name, 'start')}\n{body}\n{marker(name, 'end')}", text,
-                                       count=1)
-    return text
-
-
-def stale(text: str, new: dict[str, str]) -> list[str]:
-    """The names of the blocks whose text differs from `new` (or that the page lacks)."""
-    return [name for name in BLOCK_NAMES
-            if not block_pattern(name).search(text) or block_in_page(text, name) != new[name]]
-
-
 def main(argv: list[str]) -> int:
-    check = "--check" in argv
-    args = [a for a in argv if a != "--check"]
-    page = Path(args[0]) if args else PAGE
-    if not page.is_file():
-        sys.exit(f"no page at {page}")
-    text = page.read_text(encoding="utf-8")
-    new = blocks()
-    old = stale(text, new)
-    if check:
-        if old:
-            print(f"{page} is stale: {', '.join(old)}; regenerate it with `python docs/make_recording_numbers.py`")
-            return 1
-        print(f"{page} is up to date")
-        return 0
-    for name in BLOCK_NAMES:
-        print(f"--- {name}\n{new[name]}")
-    page.write_text(with_blocks(text, new), encoding="utf-8")
-    print(f"updated {page} ({', '.join(old) or 'nothing changed'})")
-    return 0
+    return doc_blocks.main(argv, PAGE, lambda: blocks(), COMMAND)
 
 
 if __name__ == "__main__":

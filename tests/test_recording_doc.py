@@ -1,7 +1,8 @@
 """docs/recording.md: every block of numbers is what magyro gives now (docs/make_recording_numbers.py).
 
 The blocks are made once (about 10 s: 20 simulated sessions through `magyro.observe`, the
-BROAD trial and nine degraded copies through the recording check) and shared.
+BROAD trial and its degraded copies through the recording check; broad-02's solve is the shared
+`broad02_solved` fixture's) and shared.
 """
 from __future__ import annotations
 
@@ -21,8 +22,8 @@ REGENERATE = "regenerate it with `python docs/make_recording_numbers.py`"
 
 
 @pytest.fixture(scope="module")
-def blocks():
-    return numbers.blocks()
+def blocks(broad02_solved):
+    return numbers.blocks(broad02_solved)
 
 
 @pytest.mark.slow
@@ -56,15 +57,19 @@ def test_a_page_without_the_numbers_is_filled_in():
     assert numbers.block_in_page(filled, "rests") == "| a |\n| b |"
 
 
-def test_broad_quote_follows_docs_real_data():
-    """The BROAD room numbers are read from docs/real-data.md's tables (sections 1 and 2), not copied by hand."""
+def test_broad_quote_follows_docs_real_data(broad02_solved):
+    """The BROAD room numbers are read from docs/real-data.md's tables (sections 1 and 2), not copied by hand;
+    the shipped trial's lag is the solve's."""
     source = numbers.REAL_DATA.read_text(encoding="utf-8")
     row = next(line for line in numbers.section(source, 2).splitlines() if line.startswith("| 21 | "))
     wander = row.split("|")[2].split(",")[0].strip()
     changed = source.replace(row, row.replace(f"| {wander},", "| 9.99,", 1))
-    assert f"-{wander} %" in numbers.broad_block(source) and "-9.99 %" in numbers.broad_block(changed)
+    lag_s = broad02_solved[1].time_offset_s
+    assert f"-{wander} %" in numbers.broad_block(lag_s, source)
+    assert "-9.99 %" in numbers.broad_block(lag_s, changed)
+    assert f"{1e3 * lag_s:.2f} ms on the shipped" in numbers.broad_block(lag_s, source)
     page = PAGE.read_text(encoding="utf-8")
-    assert numbers.block_in_page(page, "broad") == numbers.broad_block(source)
+    assert numbers.block_in_page(page, "broad") == numbers.broad_block(lag_s, source)
 
 
 def test_thresholds_are_the_codes():
