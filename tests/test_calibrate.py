@@ -82,6 +82,8 @@ def test_paper_calibration_is_self_consistent(paper_solved):
     assert cal.observability.rank == 12
     assert cal.solver.method == "nls"
     assert cal.solver.status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+    solver_line = next(line for line in cal.table().splitlines() if line.startswith("solver:"))
+    assert solver_line.startswith("solver: nls converged") and "_" not in solver_line, solver_line   # words, not IPOPT's
 
 
 def test_to_dict_is_json_serialisable_and_matches_the_calibration(paper_solved):

@@ -17,6 +17,7 @@ import time
 import numpy as np
 
 from magyro.errors import ObservabilityError, SolverError
+from magyro.result.parts import solver_outcome
 from magyro.front import noise
 from magyro.front.prepare import Prepared, prepare
 from magyro.nls.diagnostics import assemble
@@ -54,7 +55,8 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT) and not prep.analysis.full_rank:
         raise ObservabilityError(   # forced past the gate, and the data indeed do not pin a solution down
             f"--force cannot help the least squares here: the motion excites only {prep.analysis.rank} of the 12 gyro "
-            f"parameters and the solve finds no unique solution ({sol.stats['return_status']}); --method ekf --force "
+            f"parameters and the solve finds no unique solution (the solver {solver_outcome(sol.stats['return_status'])}); "
+            f"--method ekf --force "
             f"gives an estimate whose std shows what is missing. {prep.analysis.summary()}", prep.analysis)
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
         if not options.force and not gate_checked(prep):
@@ -75,7 +77,8 @@ def not_converged_message(sol, decrement: float) -> str:
     """Why the solve is refused (exit 1), with the evidence: never a printed nan."""
     still = (f"a further Gauss-Newton step would still reduce chi^2 by {decrement:.3g}" if np.isfinite(decrement) else
              "the Gauss-Newton step cannot be computed there: the information is singular or not finite")
-    return (f"the solver did not converge: {sol.stats['return_status']} after {sol.stats['iter_count']} iterations "
+    return (f"the solver did not converge: it {solver_outcome(sol.stats['return_status'])} after "
+            f"{sol.stats['iter_count']} iterations "
             f"({still}); the data do not fit the model at the point it reached")
 
 

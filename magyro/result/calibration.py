@@ -15,7 +15,7 @@ from magyro.result.consistency_record import SplitCheck
 from magyro.result.fit import FilterFit, LeastSquaresFit, fit_from_dict
 from magyro.result.trajectory import AttitudeTrajectory
 from magyro.text import escaped, unsafe_characters
-from magyro.result.parts import (Excitation, NoiseReport, RestCheck, SolverReport, Std, as_list, read_array,
+from magyro.result.parts import (Excitation, NoiseReport, RestCheck, SolverReport, Std, as_list, read_array, solver_outcome,
                                  read_number, read_section)
 
 SCHEMA = "magyro.calibration/1"
@@ -183,7 +183,7 @@ class Calibration:
         ob = self.observability
         lines.append(f"observability: rank {ob.rank} of 12, condition {ob.condition:.3g}")
         sv = self.solver
-        lines.append(f"solver: {sv.method} {sv.status}, {sv.iterations} iterations, {sv.seconds:.2f} s")
+        lines.append(f"solver: {sv.method} {solver_outcome(sv.status)}, {sv.iterations} iterations, {sv.seconds:.2f} s")
         lines.extend(f"warning: {w}" for w in self.warnings)
         return "\n".join(lines)
 

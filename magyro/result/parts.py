@@ -156,6 +156,23 @@ class Excitation:
                    read_optional_number(data, "tolerance", where), read_numbers(data, "eigenvalues_normalised", where))
 
 
+SOLVER_OUTCOMES = {   # IPOPT's return status (kept as it is in the JSON) in words, for people
+    "Solve_Succeeded": "converged",
+    "Solved_To_Acceptable_Level": "converged to IPOPT's looser 'acceptable' tolerance",
+    "Maximum_Iterations_Exceeded": "stopped at its iteration limit",
+    "Maximum_CpuTime_Exceeded": "stopped at its time limit",
+    "Restoration_Failed": "failed to find a better point (restoration failed)",
+    "Infeasible_Problem_Detected": "found no feasible point",
+    "Search_Direction_Becomes_Too_Small": "stopped: its steps became too small",
+    "Invalid_Number_Detected": "stopped at a value that is not a number",
+}
+
+
+def solver_outcome(status: str) -> str:
+    """A solver's return status in words ("converged"); an unknown status as itself, underscores as spaces."""
+    return SOLVER_OUTCOMES.get(status, status.replace("_", " "))
+
+
 @dataclass(frozen=True)
 class SolverReport:
     """How the method got there (JSON `solver`): the common fields, then the method's own in `details`."""
