@@ -5,6 +5,7 @@ import math
 import re
 import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -12,7 +13,7 @@ import pytest
 
 from magyro.batch import row as R
 from magyro.batch.limits import Limits, load_limits, verdict, with_verdicts
-from magyro.batch.summary import SUMMARY_COLUMNS, outliers, write_summary
+from magyro.batch.summary import FIGURES, SUMMARY_COLUMNS, outliers, write_summary
 from magyro.errors import InputError, SolverError
 
 # one-sigma spread of each column across a simulated fleet (phone grade) and its centre
@@ -318,3 +319,35 @@ def test_no_device_and_no_calibrated_device(tmp_path):
     assert list(pd.read_parquet(paths["parquet"]).columns) == SUMMARY_COLUMNS
     page = write_summary([failed_row("a"), failed_row("b")], tmp_path)["html"].read_text(encoding="utf-8")
     assert "No device calibrated" in page and "0 of 2 accepted" in page
+
+
+# --------------------------------------------------------------------------- crisp, readable figures (issue 24)
+
+
+def test_an_embedded_figure_has_twice_the_pixels_it_is_shown_at_and_knows_its_smallest_text():
+    pytest.importorskip("matplotlib")
+    from magyro.report.embed import embed_png
+    from magyro.report.figures import new_figure
+
+    fig = new_figure(9.5, 3.0)
+    ax = fig.subplots()
+    ax.plot([0, 1], [0, 1])
+    ax.tick_params(labelsize=9)
+    ax.text(0.5, 0.5, "small", fontsize=5)
+    shown = embed_png(fig, 984)
+    assert (shown.pixel_width, shown.width_px) == (1968, 984) and shown.pixel_height - 2 * shown.height_px in (0, 1)
+    assert shown.smallest_font_px == pytest.approx(5 * 984 / 9.5 / 72)      # 5 pt of a 9.5 in figure 984 px wide
+    assert "width='984'" in shown.img("a") and f"height='{shown.height_px}'" in shown.img("a")
+
+
+def test_summary_figures_are_crisp_and_readable_in_a_browser(tmp_path):
+    """The page's figures have twice the pixels the browser shows them at, and their smallest text is 10 px there."""
+    pytest.importorskip("matplotlib")
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from browser import assert_crisp_and_readable, figures_of
+
+    rows = mixed_fleet(40)
+    rows[11]["scale_ppm_z"] = 10 * SPREAD["scale_ppm"][1]      # an outlier, named on its figure
+    figures = figures_of(write_summary(rows, tmp_path, LIMITS)["html"])
+    assert len(figures) == len(FIGURES)
+    assert_crisp_and_readable(figures)

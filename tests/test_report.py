@@ -9,15 +9,21 @@ from __future__ import annotations
 import html
 import json
 import re
+import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import magyro
 from magyro.errors import InputError
 from magyro.io import load_session
 from magyro.report import report_file
+from magyro.report.section import Section
 from magyro.studies.dead_reckoning import validate
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from browser import FIGURES_JS, VIEWPORT, assert_crisp_and_readable, browser_or_skip, launch_or_skip  # noqa: E402
 
 pytest.importorskip("matplotlib")
 
@@ -25,9 +31,6 @@ DATA = Path(__file__).resolve().parent.parent / "data"
 SESSION = DATA / "broad-02.parquet"
 
 pytestmark = pytest.mark.slow  # every test reads the report of the shipped real trial: a solve and two half solves
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--no-first-run"]
 SECTIONS = ("recording", "excitation", "calibration", "residuals", "split", "dead-reckoning")
 MAX_BYTES = 5 * 1024 * 1024
 MAX_LOAD_MS = 2000.0
@@ -89,6 +92,45 @@ def test_the_page_is_self_contained(built):
     assert page.count("src='data:image/png;base64,") == len(SECTIONS)
 
 
+# the times the report quotes: spans "a–b s" (or "a – b" in a table of seconds) and instants "at t s"
+SESSION_TIME = re.compile(r"(\d+\.\d+)\s*–\s*(\d+\.\d+)|\bat(?: \(session time\))?\s+(\d+\.\d+) s")
+
+
+def test_every_time_is_session_time(built, broad02_solved):
+    """Issue 24: one time axis. broad-02's clock starts at about 37 s; observe's JSON (full_rank_at_s, the timeline,
+    the rests), its figure's time axes and every span or instant the report's sections quote lie within the
+    session's t, and the report quotes observe's full_rank_at_s."""
+    from magyro.observability.plot import report_figure
+
+    session = broad02_solved[0]
+    t0_s, t1_s = float(session.t_gyro_s[0]), float(session.t_gyro_s[-1])
+    assert t0_s > 30.0                        # else this test could not tell session time from time since the start
+    observed = magyro.observe(session)
+    d = json.loads(observed.to_json())
+    times = [d["full_rank_at_s"], d["well_conditioned_at_s"], *d["timeline"]["t_s"], *d["session"]["analysed_span_s"],
+             *(t for rest in d["session"]["rests_s"] for t in rest)]
+    assert all(t0_s - 1e-9 <= t <= t1_s + 1e-9 for t in times), (t0_s, t1_s, min(times), max(times))
+    full_rank = f"{d['full_rank_at_s']:.1f} s"
+    observability_page = (Path(__file__).resolve().parents[1] / "docs" / "observability.md").read_text(encoding="utf-8")
+    assert f"full rank comes at about {full_rank}" in " ".join(observability_page.split())   # the docs quote it
+    assert f"at (session time):        {full_rank}" in observed.table()
+    by = {s.key: s for s in built[2].sections}
+    assert f"<td>full rank reached at (session time)</td><td>{full_rank}</td>" in by["excitation"].details
+    quoted = {}
+    header = " ".join(value for _, value in built[2].facts)
+    for s in [*built[2].sections, Section("header", "", "", "", header)]:
+        text = re.sub(r"<[^>]+>", " ", s.sentence + " " + s.details)
+        quoted[s.key] = [float(t) for m in SESSION_TIME.finditer(text) for t in m.groups() if t is not None]
+        assert all(t0_s - 0.05 <= t <= t1_s + 0.05 for t in quoted[s.key]), (s.key, t0_s, t1_s, quoted[s.key])
+    assert all(quoted[k] for k in ("header", "recording", "excitation", "residuals", "split")), quoted   # the test reads each of them
+    fig = report_figure(observed)
+    timed = [ax for ax in fig.axes if ax.get_xlabel() == "session time (s)"]
+    assert len(timed) >= 2
+    for ax in timed:
+        x = np.concatenate([line.get_xdata() for line in ax.get_lines() if len(line.get_xdata()) > 2])
+        assert t0_s - 1e-9 <= x.min() and x.max() <= t1_s + 1e-9
+
+
 def test_bad_input_is_refused_before_any_output(built, tmp_path):
     _, cal_path, _, _ = built
     out = tmp_path / "report.html"
@@ -109,19 +151,6 @@ def test_bad_input_is_refused_before_any_output(built, tmp_path):
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["unknown.json", "validation.json"]
 
 
-def browser_or_skip():
-    """playwright's sync API, or a skip saying what is missing and how to install it."""
-    if not CHROMIUM.exists():
-        pytest.skip(f"{CHROMIUM} is absent: install Debian's Chromium (apt-get install chromium) to run the "
-                    "report's browser test")
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        pytest.skip("the playwright package is absent: pip install playwright (the test uses /usr/bin/chromium; "
-                    "no `playwright install` is needed)")
-    return sync_playwright
-
-
 def test_the_page_opens_offline_in_a_browser(built):
     sync_playwright = browser_or_skip()
     _, _, report, out = built
@@ -135,12 +164,9 @@ def test_the_page_opens_offline_in_a_browser(built):
             r.abort()
 
     with sync_playwright() as p:
+        browser = launch_or_skip(p)
         try:
-            browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-        except Exception as exc:  # a Chromium that does not start here (missing libraries, ...)
-            pytest.skip(f"{CHROMIUM} did not start ({str(exc).splitlines()[0]}); reinstall it: apt-get install chromium")
-        try:
-            context = browser.new_context(viewport={"width": 1100, "height": 900})
+            context = browser.new_context(viewport=VIEWPORT)
             context.route("**/*", route)
             page = context.new_page()
             page.on("request", lambda r: requests.append(r.url))
@@ -159,6 +185,7 @@ def test_the_page_opens_offline_in_a_browser(built):
             })""", list(SECTIONS))
             top = page.evaluate("() => [!!document.getElementById('verdict'), !!document.getElementById('summary'),"
                                 " document.title]")
+            shown = page.evaluate(FIGURES_JS)
         finally:
             browser.close()
     load_ms = timing["load"] - timing["start"]
@@ -170,6 +197,12 @@ def test_the_page_opens_offline_in_a_browser(built):
         assert present, f"section {key} missing"
         assert figures >= 1 and decoded == figures, f"section {key}: {decoded} of {figures} figures decoded"
     assert top[0] and top[1] and "02_undisturbed_slow_rotation_B" in top[2]
+    # issue 24: every figure crisp at the size shown (2x its pixels) with its smallest text at least 10 px there
+    assert len(shown) == len(SECTIONS)
+    assert_crisp_and_readable(shown)
+    print("figures (natural px, shown px, smallest text px): " + "; ".join(
+        f"{f['natural_w']}x{f['natural_h']}, {f['shown_w']:.0f}x{f['shown_h']:.0f}, {f['smallest_font_px']:.1f}"
+        for f in shown))
     assert out.stat().st_size < MAX_BYTES
     assert 0 < load_ms < MAX_LOAD_MS
 

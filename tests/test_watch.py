@@ -170,6 +170,22 @@ def test_rank_follows_the_motion_within_a_second(staged):
     assert 0 < statuses[-1].coverage < 1
 
 
+def test_the_time_shown_is_session_time(staged):
+    """Issue 24: watch shows and writes the samples' own t (the session time the saved file keeps), not the seconds
+    since the first sample: a recording whose clock starts at 100 s is at 105 s after 5 s of data."""
+    from magyro.live.display import plain_line
+
+    shift_s = 100.0
+    head = staged.within(0.0, 5.0)
+    mon = ExcitationMonitor()
+    mon.add(np.column_stack([head.t_gyro_s + shift_s, head.gyro_rad_s]),
+            np.column_stack([head.t_mag_s + shift_s, head.mag]))
+    status = mon.update()
+    last_s = max(head.t_gyro_s[-1], head.t_mag_s[-1]) + shift_s
+    assert status.t_s == pytest.approx(last_s) and status.to_json_dict()["t_s"] == pytest.approx(last_s)
+    assert f"t {last_s:7.1f} s" in plain_line(status)
+
+
 LIVE_LAG_S = 1.0   # live, a prediction of the data up to t is shown at t + its cost: about 1 s on 100 s of data
 
 
@@ -190,7 +206,7 @@ def test_enough_agrees_with_observe_on_the_saved_session(staged, tmp_path):
     saved = load_session(path)
     t0 = saved.t_gyro_s[0]
     for lag, rtol in ((0.0, 1e-9), (LIVE_LAG_S, 0.05)):
-        cut = magyro.observe(saved.within(t0, t0 + enough.prediction.t_s + lag))
+        cut = magyro.observe(saved.within(t0, enough.prediction.t_s + lag))   # session time, as watch shows it
         assert cut.verdict == "sufficient"
         for g, (_, values, _, target) in zip(GROUPS, accuracy_rows(cut.predicted_std, cut.targets)):
             np.testing.assert_allclose(enough.prediction.std[g], values, rtol=rtol, err_msg=f"{g}, lag {lag} s")

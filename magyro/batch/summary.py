@@ -6,8 +6,8 @@ sorts them by device and writes the three files, each atomically (whole or absen
     summary.parquet   one row per session, the columns of `magyro.batch.row.COLUMNS` then
                       verdict, verdict_reason; numbers float64 (exit_code int64), text strings
     summary.csv       the same table; a missing number is an empty field
-    summary.html      one self-contained page (CSS inline, figures as PNG data URIs, no
-                      scripts, fonts or links): the counts, every failed or rejected device
+    summary.html      one self-contained page (CSS inline, figures as PNG data URIs drawn at twice
+                      the size shown, `magyro.report.embed`; no scripts, fonts or links): the counts, every failed or rejected device
                       with its reason, the limits, the distribution of each gyro parameter
                       (and std, hard iron...) across the calibrated devices with the limits
                       drawn and the outliers named
@@ -61,6 +61,9 @@ FIGURES = [
 ]
 OUTLIER_COLUMNS = [c for c in schema.parameter_columns() if c != "rank"]
 MAX_LABELS = 6          # outliers labelled on one panel (all of them are in the table)
+MAIN_MAX_WIDTH_PX, MAIN_PADDING_PX = 1040, 28             # the page's main column (CSS) and its padding either side
+FIGURE_WIDTH_PX = MAIN_MAX_WIDTH_PX - 2 * MAIN_PADDING_PX  # the width the figures are drawn for and shown at
+FIGURE_TEXT_PT = 7.5    # the smallest text of a figure: 10.8 CSS px on a 9.5 in figure shown FIGURE_WIDTH_PX wide
 ACCEPTED_COLOR, REJECTED_COLOR, OUTLIER_COLOR, LIMIT_COLOR = "#1f5fa8", "#b3261e", "#e08a1e", "#b3261e"
 
 
@@ -238,7 +241,7 @@ def _distribution_section(table, limits, found) -> str:
     except ImportError:
         return (head + "<p class='sentence'>The figures need matplotlib, which is not installed: "
                 "<code>pip install 'magyro[plot]'</code> adds them.</p></section>")
-    from magyro.report.figures import png_data_uri
+    from magyro.report.embed import embed_png
 
     sentence = (f"Each dot is one of the {len(calibrated)} calibrated devices (red: the value breaks its limit); "
                 "dashed lines are the limits; outliers (robust z above 5) are ringed and named.")
@@ -247,7 +250,7 @@ def _distribution_section(table, limits, found) -> str:
         fig = distribution_figure(calibrated, panels, limits, found)
         if fig is None:
             continue
-        figures.append(f"<figure><img alt='{esc(fig_title)}' src='{png_data_uri(fig, dpi=72)}'>"
+        figures.append(f"<figure>{embed_png(fig, FIGURE_WIDTH_PX).img(fig_title)}"
                        f"<figcaption>{esc(fig_title)}</figcaption></figure>")
     return head + f"<p class='sentence'>{esc(sentence)}</p>" + "".join(figures) + "</section>"
 
@@ -301,12 +304,12 @@ def distribution_figure(calibrated, panels, limits, found):
                 ax.scatter([xi], [v], s=40, facecolors="none", edgecolors=OUTLIER_COLOR, linewidths=1.2)
                 if labelled < MAX_LABELS:
                     ax.annotate(_mpl_text(r["device_id"]), (xi, v), xytext=(4, 2), textcoords="offset points",
-                                fontsize=6.5, color=OUTLIER_COLOR)
+                                fontsize=FIGURE_TEXT_PT, color=OUTLIER_COLOR)
                     labelled += 1
         if limit is not None:
             _draw_limit(ax, limit, absolute, unit)
         ax.set_xticks(range(len(columns)), [_mpl_text(c.rsplit("_", 1)[-1]) if len(columns) > 1 else ""
-                                            for c in columns], fontsize=7)
+                                            for c in columns], fontsize=FIGURE_TEXT_PT)
         ax.set_xlim(-0.6, len(columns) - 0.4)
         ax.set_title(_mpl_text(f"{panel_title}" + (f" ({unit})" if unit else "")), fontsize=8)
     return fig
@@ -322,7 +325,7 @@ def _draw_limit(ax, limit: float, absolute: bool, unit: str) -> None:
         ax.axhline(level, color=LIMIT_COLOR, ls="--", lw=0.9)
     if len(near) < len(levels):
         text = f"limit {'±' if absolute else ''}{limit:g} {unit}".strip()
-        ax.set_xlabel(_mpl_text(text + ": off the scale"), fontsize=7, color=LIMIT_COLOR)
+        ax.set_xlabel(_mpl_text(text + ": off the scale"), fontsize=FIGURE_TEXT_PT, color=LIMIT_COLOR)
 
 
 # --------------------------------------------------------------------------- small helpers
@@ -347,7 +350,6 @@ CSS = """
 * { box-sizing: border-box; }
 body { margin: 0; background: #fff; color: var(--ink);
        font: 15px/1.55 system-ui, -apple-system, "Segoe UI", Roboto, "Helvetica Neue", Arial, sans-serif; }
-main { max-width: 1040px; margin: 0 auto; padding: 32px 28px 64px; }
 header { border-bottom: 1px solid var(--line); padding-bottom: 18px; margin-bottom: 22px; }
 .kicker { color: var(--muted); font-size: 13px; letter-spacing: .04em; text-transform: uppercase; margin: 0; }
 h1 { font-size: 28px; line-height: 1.2; margin: 4px 0 10px; font-weight: 650; }
@@ -370,8 +372,9 @@ table.keyvalue td:first-child { color: var(--muted); width: 42%; }
 section { border-top: 1px solid var(--line); padding-top: 26px; margin-top: 30px; }
 p.sentence { font-size: 16px; margin: 6px 0 14px; }
 figure { margin: 8px 0 14px; }
-figure img { width: 100%; height: auto; display: block; border: 1px solid var(--line); border-radius: 4px; }
+figure img { max-width: 100%; height: auto; display: block; border: 1px solid var(--line); border-radius: 4px; }
 figcaption { color: var(--muted); font-size: 12.5px; margin-top: 4px; }
 code { font-size: 13px; background: var(--panel); padding: 1px 4px; border-radius: 3px; }
 footer { margin-top: 48px; color: var(--muted); font-size: 12px; border-top: 1px solid var(--line); padding-top: 12px; }
 """
+CSS += f"main {{ max-width: {MAIN_MAX_WIDTH_PX}px; margin: 0 auto; padding: 32px {MAIN_PADDING_PX}px 64px; }}\n"

@@ -126,7 +126,7 @@ def plot_history(history: EkfHistory, path, title: str | None = None) -> None:
             line, = ax.plot(t, v, lw=1.0, label=name.replace("_deg_s", ""))
             ax.fill_between(t, v - 3 * s, v + 3 * s, color=line.get_color(), alpha=0.2, lw=0)
         ax.set_title(label)
-        ax.set_xlabel("time (s)")
+        ax.set_xlabel("session time (s)")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, ncol=3 if len(names) > 3 else 1, loc="best")
     # +/-3 sigma of a barely excited parameter can dwarf the estimates: zoom to the settled part

@@ -115,7 +115,7 @@ class RichDisplay:
                                                                      style="dim" if value is None else "red"))
         when = ""
         if status.prediction is not None:
-            when = f"prediction of the first {status.prediction.t_s:.1f} s (magyro observe, {status.prediction.seconds:.2f} s)"
+            when = f"prediction of the data up to {status.prediction.t_s:.1f} s (magyro observe, {status.prediction.seconds:.2f} s)"
         if status.predicting:
             when += ("; " if when else "") + "predicting..."
         parts = [head, table, Text(when, style="dim")]

@@ -101,7 +101,7 @@ class _Rows:
 class Status:
     """What the monitor knows after an `update()`."""
 
-    t_s: float                      # seconds of data from the first sample
+    t_s: float                      # session time of the latest sample (the stream's own t, as saved)
     gyro_samples: int
     mag_samples: int
     rank: int
@@ -118,7 +118,7 @@ class Status:
     prediction: Prediction | None   # the latest finished prediction
     predicting: bool                # a prediction is being computed
     enough: bool                    # the latest prediction meets every target
-    enough_at_s: float | None       # data time of the first prediction that met them
+    enough_at_s: float | None       # session time of the data end of the first prediction that met them
     still_s: float = 0.0            # how long the gyro has been still at the end of the data (s; 0 before ENOUGH)
 
     @property
@@ -196,11 +196,6 @@ class ExcitationMonitor:
             self.gyro.extend(gyro_rows)
         if len(mag_rows):
             self.mag.extend(mag_rows)
-
-    @property
-    def t0(self) -> float | None:
-        firsts = [r.a[0, 0] for r in (self.gyro, self.mag) if r.n]
-        return min(firsts) if firsts else None
 
     @property
     def t_last(self) -> float | None:
@@ -349,8 +344,8 @@ class ExcitationMonitor:
         top = float(np.max(lam)) if lam.size and np.max(lam) > 0 else 1.0
         lam_sorted = np.sort(lam)
         condition = float(lam_sorted[-1] / lam_sorted[0]) if lam_sorted[0] > NUMERICAL_RTOL * top else math.inf
-        t0 = self.t0
-        t_s = 0.0 if t0 is None else float(self.t_last - t0)
+        t_last = self.t_last
+        t_s = 0.0 if t_last is None else float(t_last)
         instruction, detail = self._instruction(rank, V, snr)
         p = self.prediction
         enough = bool(rank == 12 and p is not None and meets(p, self.targets))

@@ -29,7 +29,7 @@ def targets_dict(targets) -> dict:
 
 @dataclass
 class Prediction:
-    """One `magyro observe` prediction on the data up to `t_s` (seconds from the first sample)."""
+    """One `magyro observe` prediction on the data up to `t_s` (session time: the samples' own t)."""
 
     t_s: float
     std: dict | None               # {group: [3 values]} in the groups' units, None when observe gives none

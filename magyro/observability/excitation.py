@@ -74,7 +74,7 @@ def observe(session: Session, options: Options | None = None, targets: Targets |
         field_m = ellipsoid.surrogate_field_directions(s.mag)
         mag_std_unit_field = levels.mag_sample_std / float(np.mean(np.linalg.norm(s.mag, axis=1)))
 
-    tl = timeline(s, field_m, levels.gyro_sample_std_rad_s, mag_std_unit_field, checkpoints, t0)
+    tl = timeline(s, field_m, levels.gyro_sample_std_rad_s, mag_std_unit_field, checkpoints)
     full_rank_at = first_time(tl.t_s, tl.rank == 12)
     well_at = first_time(tl.t_s, (tl.rank == 12) & (tl.condition < WELL_CONDITIONED))
 
@@ -100,10 +100,10 @@ def observe(session: Session, options: Options | None = None, targets: Targets |
                "gyro_density_deg_s_sqrt_hz": math.degrees(levels.gyro_density_rad_s_sqrt_hz),
                "gyro_sample_std_rad_s": levels.gyro_sample_std_rad_s,
                "mag_std": levels.mag_std, "mag_sample_std": levels.mag_sample_std, "source": levels.source},
-        analysed_span_s=[float(s.t_gyro_s[0] - t0), float(s.t_gyro_s[-1] - t0)],
-        rests_s=[[float(a - t0), float(b - t0)] for a, b in found.segments_s],
-        mag_unit=session.mag_unit, t_mag_s=s.t_mag_s - t0, field_directions=_unit(field_m),
-        t_gyro_s=s.t_gyro_s - t0, rates_deg_s=np.rad2deg(rates),
+        analysed_span_s=[float(s.t_gyro_s[0]), float(s.t_gyro_s[-1])],
+        rests_s=[[float(a), float(b)] for a, b in found.segments_s],
+        mag_unit=session.mag_unit, t_mag_s=s.t_mag_s, field_directions=_unit(field_m),
+        t_gyro_s=s.t_gyro_s, rates_deg_s=np.rad2deg(rates),
     )
 
 
@@ -117,14 +117,14 @@ def gate_inputs(session: Session, options: Options):
 
 
 def timeline(session: Session, field_m, gyro_sample_std: float, mag_std_unit_field: float,
-             checkpoints: int = CHECKPOINTS, t0_s: float | None = None) -> Timeline:
+             checkpoints: int = CHECKPOINTS) -> Timeline:
     """Rank and condition of the cumulative integral at `checkpoints` times, by the gate's rule.
 
     Each checkpoint is judged like `gate.analyse` judges a whole session: an
     eigen-direction v of the integral so far counts when its eigenvalue exceeds
     FLOOR_FACTOR times v^T N v, N the noise matrix of the same stretch of session (it grows
     with the integral). The last checkpoint therefore reproduces the gate's rank.
-    Times are seconds from `t0_s` (default: the first gyro sample).
+    Times are session time: the `t` of the session's samples (the session file's t_s).
     """
     t, y = session.t_gyro_s, session.gyro_rad_s
     tc = np.linspace(t[0], t[-1], max(2, int(checkpoints)))
@@ -139,7 +139,7 @@ def timeline(session: Session, field_m, gyro_sample_std: float, mag_std_unit_fie
             snr[c] = np.sort(snr_c)
     with np.errstate(divide="ignore", invalid="ignore"):
         cond = np.where(lam[:, 0] > 0, lam[:, -1] / np.where(lam[:, 0] > 0, lam[:, 0], 1.0), np.inf)
-    return Timeline(tc - (t[0] if t0_s is None else t0_s), lam, snr, rank, cond)
+    return Timeline(tc, lam, snr, rank, cond)
 
 
 def first_time(t_s: np.ndarray, reached: np.ndarray) -> float | None:

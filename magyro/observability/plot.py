@@ -26,6 +26,11 @@ def require_matplotlib():
     return Figure
 
 
+FIGURE_SIZE_IN = (10.0, 9.0)   # shown 924 px wide in `magyro report`, its smallest text (8.5 pt) is 10.9 px there
+TEXT_PT = 8.5                   # the smallest text: legends and the text panel
+TEXT_CHARACTERS = 140           # a line of the text panel, which spans the figure's width
+
+
 def plot_report(report: ObservabilityReport, path) -> None:
     """The figure: field-direction coverage, eigenvalue growth, signal to noise, rates per axis. Written atomically."""
     require_matplotlib()
@@ -38,15 +43,15 @@ def plot_report(report: ObservabilityReport, path) -> None:
 def report_figure(report: ObservabilityReport):
     """The matplotlib Figure of `plot_report` (not written): coverage, eigenvalue growth, signal to noise, rates."""
     Figure = require_matplotlib()
-    fig = Figure(figsize=(13, 9.5), layout="constrained")
-    grid = fig.add_gridspec(3, 2, height_ratios=[1.1, 1.0, 0.9])
+    fig = Figure(figsize=FIGURE_SIZE_IN, layout="constrained")
+    grid = fig.add_gridspec(3, 2, height_ratios=[1.1, 1.0, 0.75])
     ax_sphere = fig.add_subplot(grid[0, 0])
     ax_eig = fig.add_subplot(grid[0, 1])
     ax_snr = fig.add_subplot(grid[1, 1], sharex=ax_eig)
-    ax_text = fig.add_subplot(grid[1, 0])
-    ax_rate = fig.add_subplot(grid[2, :])
+    ax_rate = fig.add_subplot(grid[1, 0])
+    ax_text = fig.add_subplot(grid[2, :])
     fig.suptitle(f"magyro observe: {Path(report.source).name or 'session'}: {report.verdict.upper()} "
-                 f"(rank {report.rank} of 12, condition {fmt(report.condition)})")
+                 f"(rank {report.rank} of 12, condition {fmt(report.condition)})", fontsize=11)
     c = report.coverage
 
     # field directions, Lambert cylindrical equal-area projection: the grid cells are equal rectangles
@@ -58,17 +63,17 @@ def report_figure(report: ObservabilityReport):
     ax_sphere.imshow(visited, origin="lower", extent=(-180, 180, -1, 1), aspect="auto", cmap="Greens",
                      vmin=0, vmax=2.5, interpolation="nearest")
     points = ax_sphere.scatter(lon, u[:, 2], s=1, c=report.t_mag_s, cmap="viridis")
-    fig.colorbar(points, ax=ax_sphere, label="time (s)", fraction=0.04, pad=0.01)
+    fig.colorbar(points, ax=ax_sphere, label="session time (s)", fraction=0.04, pad=0.01)
     for z in np.linspace(-1, 1, SPHERE_BANDS + 1):
         ax_sphere.axhline(z, color="0.8", lw=0.5)
     for x in np.linspace(-180, 180, SPHERE_SECTORS + 1):
         ax_sphere.axvline(x, color="0.8", lw=0.5)
     ax_sphere.set_xlim(-180, 180)
     ax_sphere.set_ylim(-1, 1)
-    ax_sphere.set_xlabel("longitude of the field direction, magnetometer frame (deg)")
-    ax_sphere.set_ylabel("z of the unit field (= sin latitude)")
+    ax_sphere.set_xlabel("longitude of the field direction, magnetometer frame (deg)", fontsize=9)
+    ax_sphere.set_ylabel("z of the unit field (= sin latitude)", fontsize=9)
     ax_sphere.set_title(f"field directions: {100 * c.sphere_fraction:.0f}% of the sphere "
-                        f"({c.cells_visited}/{c.cells} equal-area cells)", fontsize=10)
+                        f"({c.cells_visited}/{c.cells} equal-area cells)", fontsize=9.5)
 
     # eigenvalue growth of the cumulative integral, and each eigenvalue against its noise floor
     tl = report.timeline
@@ -85,30 +90,30 @@ def report_figure(report: ObservabilityReport):
             if t_mark is not None:
                 ax.axvline(t_mark, color="tab:red", ls=style, lw=1, label=f"{label} at {t_mark:.1f} s")
         ax.set_yscale("log")
-    ax_eig.set_ylabel("eigenvalues")
-    ax_eig.set_title("eigenvalue growth of the integral of M^T M", fontsize=10)
+    ax_eig.set_ylabel("eigenvalues", fontsize=9)
+    ax_eig.set_title("eigenvalue growth of the integral of M^T M", fontsize=9.5)
     if ax_eig.get_legend_handles_labels()[0]:
-        ax_eig.legend(loc="lower right", fontsize=8)
-    ax_snr.set_xlabel("time (s)")
-    ax_snr.set_ylabel("eigenvalue / noise floor")
-    ax_snr.set_title("eigenvalue / its noise floor (counted in the rank above the line)", fontsize=10)
-    ax_snr.legend(loc="lower right", fontsize=8)
+        ax_eig.legend(loc="lower right", fontsize=TEXT_PT)
+    ax_snr.set_xlabel("session time (s)", fontsize=9)
+    ax_snr.set_ylabel("eigenvalue / noise floor", fontsize=9)
+    ax_snr.set_title("eigenvalue / its noise floor (in the rank above the line)", fontsize=9.5)
+    ax_snr.legend(loc="lower right", fontsize=TEXT_PT)
 
     ax_text.axis("off")
-    lines = [f"verdict: {report.verdict}", *_wrap(report.reason, 80), ""]
-    lines += ["weakest directions:"] + [f"  {w}" for d in report.weak_directions[:4] for w in _wrap(d, 78)]
+    width = TEXT_CHARACTERS
+    lines = [f"verdict: {report.verdict}", *_wrap(report.reason, width), ""]
+    lines += ["weakest directions:"] + [f"  {w}" for d in report.weak_directions[:4] for w in _wrap(d, width - 2)]
     if report.advice:
-        lines += ["", "advice:"] + [f"  {w}" for a in report.advice[:3] for w in _wrap(a, 78)]
-    ax_text.text(0.0, 1.0, "\n".join(lines), va="top", ha="left", family="monospace", fontsize=7.5,
-                 transform=ax_text.transAxes)
+        lines += ["", "advice:"] + [f"  {w}" for a in report.advice[:3] for w in _wrap(a, width - 2)]
+    ax_text.text(0.0, 1.0, "\n".join(lines), va="top", ha="left", fontsize=TEXT_PT, transform=ax_text.transAxes)
 
     for i in range(3):
         ax_rate.plot(report.t_gyro_s, report.rates_deg_s[:, i], lw=0.7,
                      label=f"gyro {AXES[i]}: turned {c.angle_turned_deg[i]:.0f} deg, peak {c.peak_rate_deg_s[i]:.0f} deg/s")
-    ax_rate.set_xlabel("time (s)")
-    ax_rate.set_ylabel("rate (deg/s)")
-    ax_rate.set_title(f"rates per gyro axis ({c.rate_reference})", fontsize=10)
-    ax_rate.legend(loc="upper right", fontsize=8)
+    ax_rate.set_xlabel("session time (s)", fontsize=9)
+    ax_rate.set_ylabel("rate (deg/s)", fontsize=9)
+    ax_rate.set_title(f"rates per gyro axis ({c.rate_reference})", fontsize=9.5)
+    ax_rate.legend(loc="upper right", fontsize=TEXT_PT)
     return fig
 
 

@@ -1,9 +1,10 @@
 """What `magyro observe` reports, as data: the report and its parts, its JSON and its terminal table.
 
 `excitation.observe` fills an `ObservabilityReport` from a session; `plot.plot_report`
-draws it. Times in the report are seconds from the session's first gyro sample
-(`t_start_s` is that sample's `t`). The JSON layout (schema `SCHEMA`) is described
-in docs/observability.md, section 4.
+draws it. Every time in the report is session time: the `t` of the session's samples
+(the session file's `t_s`, the time axis of every magyro output), so `full_rank_at_s`
+lies between `t_start_s` (the first gyro sample's `t`) and `t_start_s + duration_s`.
+The JSON layout (schema `SCHEMA`) is described in docs/observability.md, section 4.
 """
 from __future__ import annotations
 
@@ -33,7 +34,7 @@ UPPER_OFF_DIAGONAL = ((0, 1), (0, 2), (1, 2))
 class Timeline:
     """The cumulative integral of M^T M at checkpoints through the session."""
 
-    t_s: np.ndarray               # (C,) seconds from the first gyro sample
+    t_s: np.ndarray               # (C,) session time (the session's own t)
     eigenvalues: np.ndarray       # (C, 12) ascending, raw units
     signal_to_noise: np.ndarray   # (C, 12) ascending: each eigenvalue over what noise alone puts in its direction
     rank: np.ndarray              # (C,)
@@ -71,7 +72,7 @@ class ObservabilityReport:
     ellipsoid_problem: str | None           # why it could not be fitted
     ellipsoid_rms_norm_error: float | None
     timeline: Timeline
-    full_rank_at_s: float | None
+    full_rank_at_s: float | None            # session time, like every time here
     well_conditioned_at_s: float | None
     coverage: Coverage
     predicted_std: Std | None               # like Calibration.std (inf where unobservable), or None
@@ -160,15 +161,17 @@ class ObservabilityReport:
     def table(self) -> str:
         """The report for people: verdict first, then why, then what to do."""
         a, c, t = self.analysis, self.coverage, self.targets
-        out = [f"magyro observe: {self.source or 'session'} ({self.duration_s:.1f} s, gyro {self.gyro_rate_hz:.0f} Hz, "
+        out = [f"magyro observe: {self.source or 'session'} ({self.duration_s:.1f} s, session time "
+               f"{self.t_start_s:.1f}-{self.t_start_s + self.duration_s:.1f} s, gyro {self.gyro_rate_hz:.0f} Hz, "
                f"magnetometer {self.mag_rate_hz:.0f} Hz)",
                f"verdict: {self.verdict.upper()}: {self.reason}",
                *([self.recording.summary()] if self.recording is not None else []),
                "",
                f"observability (integral of M^T M, paper eq. 10-11): rank {a.rank} of 12, condition {fmt(a.condition)}"]
         out.append("  eigenvalues / largest: " + " ".join(f"{v:.2g}" for v in a.eigenvalues_normalised))
-        out.append(f"  full rank after:        {_when(self.full_rank_at_s)}")
-        out.append(f"  well conditioned after: {_when(self.well_conditioned_at_s)} (condition < {WELL_CONDITIONED:g})")
+        out.append(f"  full rank at (session time):        {_when(self.full_rank_at_s)}")
+        out.append(f"  well conditioned at (session time): {_when(self.well_conditioned_at_s)} "
+                   f"(condition < {WELL_CONDITIONED:g})")
         if self.weak_directions:
             out.append("weak directions:")
             out += [f"  - {w}" for w in self.weak_directions]
@@ -257,6 +260,7 @@ def fmt(x) -> str:
     return f"{x:.3g}"
 
 
-def _when(t) -> str:
-    return "never (within this session)" if t is None else f"{t:.1f} s"
+def _when(t_s) -> str:
+    """A session time for people, or 'never'."""
+    return "never (within this session)" if t_s is None else f"{t_s:.1f} s"
 

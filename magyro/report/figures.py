@@ -1,20 +1,23 @@
 """The report's own figures (the recording's clocks, the calibration with its std, the residuals over time, the
-split-half check) and the embedding of any matplotlib Figure in the page as a base64 PNG.
+split-half check) and the embedding of any matplotlib Figure in the page (`embedded`: a PNG at twice the width
+the page shows it at, `magyro.report.embed`).
 
-Every figure is a `matplotlib.figure.Figure` made without pyplot (no global state, nothing to close).
+Every figure is a `matplotlib.figure.Figure` made without pyplot (no global state, nothing to close). Every
+figure is shown FIGURE_WIDTH_PX wide; its text is at least 8 pt, which at that width is over 10 CSS pixels for
+a figure up to 10 in wide.
 """
 from __future__ import annotations
-
-import base64
-import io
 
 import numpy as np
 
 from magyro.errors import InputError
+from magyro.report.embed import EmbeddedFigure, embed_png
 
 RAW, CALIBRATED, SPLIT = "#c0392b", "#1f5fa8", "#e08a1e"   # the page's colours for raw, calibrated, split-half
 GOOD, FAIR, POOR = "#2e7d32", "#b26a00", "#b3261e"
-DPI = 90
+PAGE_MAX_WIDTH_PX = 980                                   # the page's main column (magyro.report.html.CSS) ...
+PAGE_PADDING_PX = 28                                      # ... and its padding on either side
+FIGURE_WIDTH_PX = PAGE_MAX_WIDTH_PX - 2 * PAGE_PADDING_PX  # the width every figure is shown at
 
 
 def new_figure(width_in: float, height_in: float):
@@ -33,11 +36,9 @@ def style(ax) -> None:
     ax.tick_params(labelsize=8)
 
 
-def png_data_uri(fig, dpi: int = DPI) -> str:
-    """The figure as a `data:image/png;base64,...` URI (embedded: the page needs no other file)."""
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
-    return "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
+def embedded(fig) -> EmbeddedFigure:
+    """The figure as the page embeds it: a PNG data URI at twice FIGURE_WIDTH_PX, shown FIGURE_WIDTH_PX wide."""
+    return embed_png(fig, FIGURE_WIDTH_PX)
 
 
 # --------------------------------------------------------------------------- 1. the recording's clocks
@@ -86,8 +87,8 @@ def recording_figure(raw, repaired, check):
         if name == "gyro":
             for a, b in check.gyro_holes_s:
                 ax.axvspan(a, b, color=POOR, alpha=0.3, lw=0)
-        ax.legend(fontsize=7.5, loc="upper right", markerscale=2, ncols=3, frameon=False)
-    axes[-1].set_xlabel("time (s)", fontsize=9)
+        ax.legend(fontsize=8, loc="upper right", markerscale=2, ncols=3, frameon=False)
+    axes[-1].set_xlabel("session time (s)", fontsize=9)
     return fig
 
 
@@ -160,10 +161,10 @@ def residual_figure(windows, field, max_field_change: float, field_window_s: flo
     top = max(1.3 * limit, 1.05 * float(np.nanmax(np.abs(percent))) if percent.size else limit)
     ax2.set_ylim(-top, top)
     ax2.set_ylabel("|R (y − h)| − 1 (%)", fontsize=9)
-    ax2.set_xlabel("time (s)", fontsize=9)
+    ax2.set_xlabel("session time (s)", fontsize=9)
     ax2.legend(fontsize=8, loc="lower right", frameon=False, ncols=2)
     ax2.text(0.005, 0.97, f"limit ±{limit:g} % (a magnet or iron near the path)", transform=ax2.transAxes,
-             fontsize=7.5, va="top", color=POOR)
+             fontsize=8, va="top", color=POOR)
     return fig
 
 

@@ -126,7 +126,7 @@ def residual_section(moving, cal) -> Section:
                                   FIELD_WINDOW_S)
     return Section("residuals", "4. The fit's residuals over time", status,
                    f"misfit −{100 * reduction:.0f} % vs raw, field within {100 * change.max_fraction:.1f} %",
-                   sentence, figures.png_data_uri(fig), "turning misfit and field magnitude over time", details)
+                   sentence, figures.embedded(fig), "turning misfit and field magnitude over time", details)
 
 
 # --------------------------------------------------------------------------- 5. the split-half check
@@ -213,4 +213,4 @@ def split_section(check, computed_here: bool, why_not: str | None = None) -> Sec
                    if computed_here else " This check was carried in the calibration file.") + "</p>")
     fig = figures.split_figure(check, SPLIT_LABELS)
     return Section("split", title, GOOD if ok else FAIR, f"RMS z {check.rms_z:.2f}, max {check.max_abs_z:.1f}",
-                   sentence, figures.png_data_uri(fig), "each gyro parameter's split-half z", details, caveat)
+                   sentence, figures.embedded(fig), "each gyro parameter's split-half z", details, caveat)

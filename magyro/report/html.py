@@ -1,6 +1,7 @@
 """The report's page: one HTML file, CSS inline, figures embedded, no scripts, fonts or other files."""
 from __future__ import annotations
 
+from magyro.report.figures import PAGE_MAX_WIDTH_PX, PAGE_PADDING_PX
 from magyro.report.section import esc
 
 STATUS_WORDS = {"good": "good", "fair": "caveat", "poor": "problem", "": "not judged"}
@@ -12,7 +13,6 @@ CSS = """
 html { -webkit-text-size-adjust: 100%; }
 body { margin: 0; background: var(--bg); color: var(--ink);
        font: 15px/1.55 system-ui, -apple-system, "Segoe UI", Roboto, "Helvetica Neue", Arial, sans-serif; }
-main { max-width: 980px; margin: 0 auto; padding: 32px 28px 64px; }
 header { border-bottom: 1px solid var(--line); padding-bottom: 18px; margin-bottom: 22px; }
 .kicker { color: var(--muted); font-size: 13px; letter-spacing: .04em; text-transform: uppercase; margin: 0; }
 h1 { font-size: 28px; line-height: 1.2; margin: 4px 0 10px; font-weight: 650; }
@@ -48,7 +48,7 @@ table.summary a:hover { text-decoration: underline; }
 section { border-top: 1px solid var(--line); padding-top: 26px; margin-top: 30px; }
 p.sentence { font-size: 16px; margin: 6px 0 14px; }
 figure { margin: 8px 0 4px; }
-figure img { width: 100%; height: auto; display: block; border: 1px solid var(--line); border-radius: 4px; }
+figure img { max-width: 100%; height: auto; display: block; border: 1px solid var(--line); border-radius: 4px; }
 figcaption { color: var(--muted); font-size: 12.5px; margin-top: 4px; }
 details { margin-top: 12px; }
 details > summary { cursor: pointer; color: var(--accent); font-weight: 600; font-size: 14px; }
@@ -61,8 +61,11 @@ ul.findings li { margin: 6px 0; }
 .tag.repaired { background: #e3f1e4; color: var(--good); }
 .small { color: var(--muted); font-size: 12.5px; }
 footer { margin-top: 48px; color: var(--muted); font-size: 12px; border-top: 1px solid var(--line); padding-top: 12px; }
-@media print { main { max-width: none; padding: 0; } section { break-inside: avoid-page; } details { display: block; } }
 """
+# the main column: its width less its padding is the width the figures are drawn for (figures.FIGURE_WIDTH_PX)
+CSS += (f"main {{ max-width: {PAGE_MAX_WIDTH_PX}px; margin: 0 auto; padding: 32px {PAGE_PADDING_PX}px 64px; }}\n"
+        + """@media print { main { max-width: none; padding: 0; } section { break-inside: avoid-page; }
+                details { display: block; } }\n""")
 
 
 def render(report) -> str:
@@ -112,7 +115,7 @@ def section_html(s) -> str:
     pill = f"<span class='pill {esc(s.status)}'>{esc(STATUS_WORDS.get(s.status, s.status))}</span>"
     figure = ""
     if s.figure:
-        figure = (f"<figure><img src='{s.figure}' alt='{esc(s.figure_alt)}'>"
+        figure = (f"<figure>{s.figure.img(s.figure_alt)}"
                   f"<figcaption>{esc(s.figure_alt[:1].upper() + s.figure_alt[1:])}.</figcaption></figure>")
     details = f"<details open><summary>Details</summary>{s.details}</details>" if s.details else ""
     return (f"<section id='{esc(s.key)}'><h2>{esc(s.title)} {pill}</h2>"

@@ -18,7 +18,7 @@ class Section:
     status: str               # good | fair | poor | "" (not judged)
     headline: str             # a few words for the summary table
     sentence: str             # ONE sentence: what it means and whether it is good
-    figure: str | None = None  # data URI of the PNG
+    figure: object = None     # the embedded figure (magyro.report.embed.EmbeddedFigure), or None
     figure_alt: str = ""
     details: str = ""         # HTML (tables, lists), already escaped
     caveat: str = ""          # a short clause for the verdict when the status is not good

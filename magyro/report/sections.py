@@ -76,7 +76,7 @@ def recording_section(raw, repaired, check) -> Section:
     else:
         details += "<p>No findings.</p>"
     fig = figures.recording_figure(raw, repaired, check)
-    return Section("recording", "1. The recording", status, headline, sentence, figures.png_data_uri(fig),
+    return Section("recording", "1. The recording", status, headline, sentence, figures.embedded(fig),
                    "sample intervals of the gyro and the magnetometer over time", details)
 
 
@@ -95,8 +95,9 @@ def excitation_section(report) -> Section:
             ["field directions covered", f"{100 * c.sphere_fraction:.0f} % ({c.cells_visited}/{c.cells} cells)"],
             ["angle turned per gyro axis (deg)", ", ".join(f"{a:.0f}" for a in c.angle_turned_deg)],
             ["peak rate per gyro axis (deg/s)", ", ".join(f"{a:.0f}" for a in c.peak_rate_deg_s)],
-            ["full rank reached at", "never" if report.full_rank_at_s is None else f"{report.full_rank_at_s:.1f} s"],
-            ["well conditioned at", "never" if report.well_conditioned_at_s is None
+            ["full rank reached at (session time)",
+             "never" if report.full_rank_at_s is None else f"{report.full_rank_at_s:.1f} s"],
+            ["well conditioned at (session time)", "never" if report.well_conditioned_at_s is None
              else f"{report.well_conditioned_at_s:.1f} s"]]
     details = table(["", ""], rows, "keyvalue")
     if report.weak_directions:
@@ -106,7 +107,7 @@ def excitation_section(report) -> Section:
         details += "<p><b>Advice:</b></p><ul>" + "".join(f"<li>{esc(a)}</li>" for a in report.advice[:3]) + "</ul>"
     return Section("excitation", "2. Excitation and coverage", status,
                    f"{report.verdict}, rank {report.rank}/12", sentence,
-                   figures.png_data_uri(report_figure(report), dpi=76),
+                   figures.embedded(report_figure(report)),
                    "field-direction coverage, eigenvalue growth and rates (magyro observe's figure)", details)
 
 
@@ -233,7 +234,7 @@ def calibration_section(cal, check=None, targets=None) -> Section:
               else f"the motion excites only {cal.observability.rank} of the 12 parameters")
     return Section("calibration", "3. The calibration", status,
                    f"scale σ ≤ {num(sigma(worst_scale), 2)} ppm, bias σ ≤ {num(sigma(worst_bias), 2)} deg/s",
-                   sentence, figures.png_data_uri(fig), "each gyro parameter with its one-sigma", details, caveat)
+                   sentence, figures.embedded(fig), "each gyro parameter with its one-sigma", details, caveat)
 
 
 # --------------------------------------------------------------------------- 6. dead reckoning
@@ -271,5 +272,5 @@ def dead_reckoning_section(report) -> Section:
         details += "<ul>" + "".join(f"<li>{esc(n)}</li>" for n in report.notes) + "</ul>"
     headline = f"{'−' if removed >= 0 else '+'}{abs(removed):.0f} % error" if np.isfinite(ratio) else "n/a"
     return Section("dead-reckoning", "6. Dead reckoning, raw against calibrated", status, headline, sentence,
-                   figures.png_data_uri(validation_figure(report)),
+                   figures.embedded(validation_figure(report)),
                    "dead-reckoning error of the raw and the calibrated gyro", details)

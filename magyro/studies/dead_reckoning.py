@@ -367,7 +367,7 @@ def validation_figure(report: ValidationReport):
         ax1.legend()
         ax2.plot(report.t_s, report.truth_angle_deg, color="0.4", lw=1)
         ax2.set_ylabel("truth rotation\nsince start (deg)")
-        ax2.set_xlabel("time (s)")
+        ax2.set_xlabel("session time (s)")
         ax2.grid(alpha=0.3)
     else:
         fig = Figure(figsize=(9, 7))
@@ -380,6 +380,6 @@ def validation_figure(report: ValidationReport):
             axes[i].grid(alpha=0.3)
         axes[0].set_title("dead-reckoned attitude since the start (equal start and end poses)")
         axes[0].legend()
-        axes[-1].set_xlabel("time (s)")
+        axes[-1].set_xlabel("session time (s)")
     fig.tight_layout()
     return fig
