@@ -196,7 +196,8 @@ def test_enough_agrees_with_observe_on_the_saved_session(staged, tmp_path):
 
     predictor = Predictor("inline", refresh_s=4.0)
     mon = ExcitationMonitor(predictor=predictor)
-    statuses = feed(mon, staged, stop=lambda s: s.enough)
+    with mock.patch("magyro.live.prediction.COST_FACTOR", 0.0):   # predictions every 4 s of data, whatever the load
+        statuses = feed(mon, staged, stop=lambda s: s.enough)
     enough = statuses[-1]
     assert enough.enough and enough.enough_at_s == enough.prediction.t_s
     mon.predictor = None
@@ -230,7 +231,8 @@ def test_the_readme_demo_reaches_enough_then_asks_for_the_rest_before_stop():
     problem, said_s = load_problem(demo.group(1)), float(demo.group(2))
     session = sim.simulate(problem, 0)[0]
     mon = ExcitationMonitor(predictor=Predictor("inline"))
-    at_enough = feed(mon, session, stop=lambda s: s.enough)[-1]
+    with mock.patch("magyro.live.prediction.COST_FACTOR", 0.0):   # predictions every REFRESH_S of data, whatever the load
+        at_enough = feed(mon, session, stop=lambda s: s.enough)[-1]
     assert at_enough.enough, "the demo never reaches ENOUGH"
     assert abs(mon.enough_at_s - said_s) <= REFRESH_S
     assert mon.enough_at_s < problem.duration_s - problem.motion.rest_end_s
