@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from magyro.errors import InputError
+from magyro.text import significant
 
 
 @dataclass(frozen=True)
@@ -63,7 +64,7 @@ def classify_spread(y: np.ndarray, noise_std: float) -> None:
     if spread < STATIC_SPREAD_IN_NOISE_STD * noise_std:
         raise DegenerateCloud(
             "static",
-            f"the magnetometer reading barely changes (spread {spread:.3g} vs noise {noise_std:.3g}): "
+            f"the magnetometer reading barely changes (spread {significant(spread)} vs noise {significant(noise_std)}): "
             "the device was not rotated",
         )
     if thickness < PLANAR_THICKNESS_IN_NOISE_STD * noise_std:

@@ -8,6 +8,7 @@ import numpy as np
 
 from magyro.front.findings import Finding, repairable
 from magyro.session import runs_of_true
+from magyro.text import significant
 
 SAT_MIN_DEG_S = 30.0              # nobody's full scale is below this
 SAT_MIN_SAMPLES = 3
@@ -101,7 +102,7 @@ def spikes(t: np.ndarray, mag: np.ndarray, unit: str, held: np.ndarray | None = 
     if len(i) > max(SPIKE_MAX_FRACTION * n, SPIKE_ALWAYS):
         return flagged, [Finding(
             "spikes", "magnetometer", f"{len(i)} magnetometer samples ({100 * len(i) / n:.1f} %) are far off their "
-            f"neighbours (up to {size.max():.3g} {unit}, {ratio:.0f}x the noise): too many to be spikes, so none is "
+            f"neighbours (up to {significant(size.max())} {unit}, {ratio:.0f}x the noise): too many to be spikes, so none is "
             f"dropped (more than {100 * SPIKE_MAX_FRACTION:g} % is the noise's own shape or a field that changes "
             "faster than it is sampled)", ((float(t[0]), float(t[-1])),), "info",
             "a noise with heavy tails weighs a little more in the least squares than its std says",
@@ -110,7 +111,7 @@ def spikes(t: np.ndarray, mag: np.ndarray, unit: str, held: np.ndarray | None = 
     where = tuple((float(t[rows[j]]), float(t[rows[j]])) for j in i)
     return flagged, [Finding(
         "spikes", "magnetometer", f"{len(i)} magnetometer sample(s) far off their neighbours (up to "
-        f"{size.max():.3g} {unit}, {ratio:.0f}x the noise) at {shown} s",
+        f"{significant(size.max())} {unit}, {ratio:.0f}x the noise) at {shown} s",
         where, "warning",
         "the ellipsoid fit is least squares: 20 spikes in 7500 samples made it call a good recording "
         "'too little of the sphere' (exit 3)",

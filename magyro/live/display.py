@@ -99,7 +99,7 @@ class RichDisplay:
         head = Text()
         head.append(f"{status.t_s:.1f} s   ", style="bold")
         head.append(f"rank {status.rank}/12", style="bold green" if status.rank == 12 else "bold yellow")
-        head.append(f" above the noise floor ({status.noise_floor:.3g}, x10)   ")
+        head.append(f" above the noise floor ({significant(status.noise_floor)}, x10)   ")
         head.append(f"coverage {100 * status.coverage:.0f}% ({status.cells_visited} cells)   ")
         head.append(f"field: {status.field_source}", style="dim")
         table = Table(box=None, pad_edge=False)

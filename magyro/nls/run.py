@@ -34,6 +34,7 @@ from magyro.options import Options
 from magyro.progress import step
 from magyro.result.calibration import Calibration
 from magyro.session import Session
+from magyro.text import significant
 
 MAX_DECREMENT = 1e-3  # chi^2 units: a step that would remove less than this changes nothing that matters
 
@@ -75,7 +76,7 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
 
 def not_converged_message(sol, decrement: float) -> str:
     """Why the solve is refused (exit 1), with the evidence: never a printed nan."""
-    still = (f"a further Gauss-Newton step would still reduce chi^2 by {decrement:.3g}" if np.isfinite(decrement) else
+    still = (f"a further Gauss-Newton step would still reduce chi^2 by {significant(decrement)}" if np.isfinite(decrement) else
              "the Gauss-Newton step cannot be computed there: the information is singular or not finite")
     return (f"the solver did not converge: it {solver_outcome(sol.stats['return_status'])} after "
             f"{sol.stats['iter_count']} iterations "

@@ -10,6 +10,7 @@ import numpy as np
 
 from magyro.observability.gate import AXES, FLOOR_FACTOR, WELL_CONDITIONED, ObservabilityAnalysis
 from magyro.observability.matrix import PARAMETER_NAMES
+from magyro.text import significant
 
 
 def describe_direction(v: np.ndarray, at_least: float = 0.05, most: int = 4) -> str:
@@ -62,7 +63,7 @@ def weak_directions(analysis: ObservabilityAnalysis, most: int = 3, verdict: str
     weak, advice = [], []
     for k in range(min(most, 12)):
         weak.append(f"{describe_direction(V[:, k])} (eigenvalue {lam[k] / top:.2g} of the largest, "
-                    f"{snr[k]:.3g} x its noise floor)")
+                    f"{significant(snr[k])} x its noise floor)")
     if lam[0] / top < 1.0 / WELL_CONDITIONED or snr[0] < 10 * FLOOR_FACTOR:
         advice.append(f"The weakest direction is poorly excited: {direction_advice(V[:, 0])}.")
     elif verdict == "marginal":

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from magyro.observability.matrix import information_integral, trapezoid_weights
+from magyro.text import significant
 
 FLOOR_FACTOR = 10.0
 NUMERICAL_RTOL = 1e-12
@@ -56,7 +57,7 @@ class ObservabilityAnalysis:
         return self.rank == 12
 
     def summary(self) -> str:
-        head = f"rank {self.rank} of 12 (condition {self.condition:.3g})"
+        head = f"rank {self.rank} of 12 (condition {significant(self.condition)})"
         if self.full_rank:
             return head
         return head + ". Unobservable share: " + ", ".join(self.weak_directions) + ". " + " ".join(self.advice)
@@ -221,7 +222,7 @@ def accuracy_shortfalls(std, bounds) -> list[tuple[str, float, float, str]]:
 def accuracy_summary(shortfalls: list[tuple[str, float, float, str]], what: str = "predicted one-sigma") -> str:
     """The shortfalls in one sentence, worst first, with the motion to add."""
     worst = sorted(shortfalls, key=lambda s: -s[1] / s[2])
-    parts = [f"{name} {value:.3g} (bound {bound:.3g})" for name, value, bound, _ in worst[:4]]
+    parts = [f"{name} {significant(value)} (bound {significant(bound)})" for name, value, bound, _ in worst[:4]]
     advice = list(dict.fromkeys(a for *_, a in worst))
     more = f" and {len(worst) - 4} more" if len(worst) > 4 else ""
     return f"{what} {', '.join(parts)}{more}; {'; '.join(advice[:2])}"

@@ -20,6 +20,7 @@ from magyro.observability.gate import AXES, FLOOR_FACTOR, WELL_CONDITIONED, Obse
 from magyro.observability.matrix import PARAMETER_NAMES
 from magyro.result.parts import Std
 from magyro.targets import Targets  # noqa: F401  (re-exported: the one set of accuracy targets)
+from magyro.text import significant
 
 SCHEMA = "magyro.observability/1"
 SPHERE_BANDS = 12                 # equal-area grid of field directions: bands of equal height in z ...
@@ -257,7 +258,7 @@ def fmt(x) -> str:
     x = float(x)
     if not math.isfinite(x):
         return "inf"
-    return f"{x:.3g}"
+    return significant(x)
 
 
 def _when(t_s) -> str:

@@ -15,6 +15,7 @@ import numpy as np
 from magyro.report import figures
 from magyro.report.fit_sections import residual_section, split_section  # noqa: F401  (sections 4 and 5)
 from magyro.report.section import FAIR, GOOD, POOR, Section, esc, num, table  # noqa: F401  (esc: public)
+from magyro.text import significant
 
 # the calibration section judges each one-sigma against the accuracy targets (magyro.targets), as observe does
 DEAD_RECKONING_GOOD_RATIO = 0.5   # calibrated / raw error at most this: the calibration clearly pays
@@ -218,8 +219,8 @@ def calibration_section(cal, check=None, targets=None) -> Section:
         mag.append(["magnetometer lag behind the gyro",
                     f"{1e3 * cal.time_offset_s:+.2f} ± {1e3 * cal.std.time_offset_s:.2f} ms"])
     if cal.noise is not None:
-        mag.append(["gyro noise density", f"{np.rad2deg(cal.noise.gyro_density_rad_s_sqrt_hz):.3g} deg/s/√Hz"])
-        mag.append(["magnetometer noise (" + cal.mag_unit + ")", f"{cal.noise.mag_std:.3g}"])
+        mag.append(["gyro noise density", f"{significant(np.rad2deg(cal.noise.gyro_density_rad_s_sqrt_hz))} deg/s/√Hz"])
+        mag.append(["magnetometer noise (" + cal.mag_unit + ")", f"{significant(cal.noise.mag_std)}"])
     mag.append(["observability", f"rank {cal.observability.rank} of 12, condition {num(cal.observability.condition)}"])
     mag.append(["solver", f"{cal.solver.method} {cal.solver.status}, {cal.solver.iterations} iterations, "
                           f"{cal.solver.seconds:.2f} s"])

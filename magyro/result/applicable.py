@@ -8,7 +8,7 @@ import numpy as np
 
 from magyro.errors import InputError
 from magyro.io.csv_units import MAG_UNITS
-from magyro.text import escaped
+from magyro.text import escaped, significant
 
 MAX_CONDITION = 1e12          # K_g or R beyond this is singular to double precision
 MAX_GAIN = 1e6                # no sensor's scale factor is a million: such a K_g is not a calibration
@@ -43,7 +43,7 @@ def singular_matrix(cal) -> str | None:
         with np.errstate(all="ignore"):
             condition = np.linalg.cond(M) if np.all(np.isfinite(M)) else np.inf
         if not np.isfinite(condition) or condition > MAX_CONDITION:
-            return (f"the calibration's {name} is singular or nearly so (condition number {condition:.3g}, at most "
+            return (f"the calibration's {name} is singular or nearly so (condition number {significant(condition)}, at most "
                     f"{MAX_CONDITION:g})")
     return None
 
@@ -55,7 +55,7 @@ def check_matrices(cal) -> None:
         raise InputError(f"{singular}: not a calibration that can be applied")
     gain = float(np.max(np.abs(cal.K_g)))
     if gain > MAX_GAIN:
-        raise InputError(f"the calibration's gyro K_g scales rates by {gain:.3g} (at most {MAX_GAIN:g}): not a "
+        raise InputError(f"the calibration's gyro K_g scales rates by {significant(gain)} (at most {MAX_GAIN:g}): not a "
                          "calibration that can be applied")
 
 

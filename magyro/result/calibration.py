@@ -14,7 +14,7 @@ from magyro.front.findings import RecordingCheck
 from magyro.result.consistency_record import SplitCheck
 from magyro.result.fit import FilterFit, LeastSquaresFit, fit_from_dict
 from magyro.result.trajectory import AttitudeTrajectory
-from magyro.text import escaped, unsafe_characters
+from magyro.text import escaped, unsafe_characters, significant
 from magyro.result.parts import (Excitation, NoiseReport, RestCheck, SolverReport, Std, as_list, read_array, solver_outcome,
                                  read_number, read_section)
 
@@ -170,7 +170,7 @@ class Calibration:
         walk = self.solver.details.get("hard_iron_walk")
         if walk:
             lines.append(f"hard iron moving (walk {walk['density_per_sqrt_s']:g} {self.mag_unit}/sqrt(s)): peak to peak "
-                         + "  ".join(f"{v:.3g}" for v in walk["peak_to_peak"]) + f" {self.mag_unit}")
+                         + "  ".join(f"{significant(v)}" for v in walk["peak_to_peak"]) + f" {self.mag_unit}")
         if self.rests is not None:
             lines.append(f"bias from {self.rests.seconds:.1f} s of rest (deg/s)  "
                          + "  ".join(f"{v:+8.4f}" for v in self.rests.bias_deg_s))
@@ -181,7 +181,7 @@ class Calibration:
         if self.recording is not None:
             lines.append(self.recording.summary())
         ob = self.observability
-        lines.append(f"observability: rank {ob.rank} of 12, condition {ob.condition:.3g}")
+        lines.append(f"observability: rank {ob.rank} of 12, condition {significant(ob.condition)}")
         sv = self.solver
         lines.append(f"solver: {sv.method} {solver_outcome(sv.status)}, {sv.iterations} iterations, {sv.seconds:.2f} s")
         lines.extend(f"warning: {w}" for w in self.warnings)

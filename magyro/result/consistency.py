@@ -27,6 +27,7 @@ from magyro.result.calibration import Calibration
 from magyro.result.consistency_record import MAX_HALF_Z, MAX_RMS_Z, SplitCheck  # noqa: F401  (kept importable here)
 from magyro.result.reported import misalignment_vector
 from magyro.session import Session
+from magyro.text import significant
 
 QUANTITIES = (
     [(f"K_g[{i},{j}]", "K_g", (i, j)) for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))]
@@ -127,5 +128,5 @@ def split_warning(report: SplitCheck) -> str | None:
         f"(most on {report.worst}: {row['difference']:.4g}, {report.max_abs_z:.1f} sigma): the model does not "
         f"hold throughout (field not homogeneous along the path, magnetometer not linear, or the sensor changed), "
         f"so the reported std understates the error by about {report.rms_z:.1f}x; each parameter's split_std "
-        f"in the JSON is the more honest one-sigma ({row['split_std']:.3g} for {report.worst})"
+        f"in the JSON is the more honest one-sigma ({significant(row['split_std'])} for {report.worst})"
     )

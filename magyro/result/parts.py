@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from magyro.errors import InputError
+from magyro.text import significant
 
 
 def as_list(a) -> list:
@@ -237,10 +238,10 @@ class NoiseReport:
 
     def summary(self, mag_unit: str) -> str:
         """The table's line: each level and where it came from."""
-        return (f"noise: gyro {np.rad2deg(self.gyro_density_rad_s_sqrt_hz):.3g} deg/s/sqrt(Hz) "
-                f"(= {self.gyro_density_rad_s_sqrt_hz:.3g} rad/s/sqrt(Hz); "
+        return (f"noise: gyro {significant(np.rad2deg(self.gyro_density_rad_s_sqrt_hz))} deg/s/sqrt(Hz) "
+                f"(= {significant(self.gyro_density_rad_s_sqrt_hz)} rad/s/sqrt(Hz); "
                 f"{self._origin(self.gyro_source, self.gyro_density_estimated, self.gyro_density_rad_s_sqrt_hz)}), "
-                f"magnetometer {self.mag_std:.3g} {mag_unit} "
+                f"magnetometer {significant(self.mag_std)} {mag_unit} "
                 f"({self._origin(self.mag_source, self.mag_std_estimated, self.mag_std)})")
 
     @staticmethod
@@ -249,7 +250,7 @@ class NoiseReport:
         re-weights a rest level too when its residuals show model error, a field not quite homogeneous)."""
         if isinstance(before, (int, float)) and not isinstance(before, bool) and before > 0 \
                 and abs(after / before - 1.0) > 0.01 and source != "estimated by the solve":
-            return f"{source} {before:.3g}, re-weighted by the fit's residuals"
+            return f"{source} {significant(before)}, re-weighted by the fit's residuals"
         return source
 
     @classmethod

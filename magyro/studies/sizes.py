@@ -4,6 +4,7 @@ out of memory. The caps keep one simulation well under 1 GiB."""
 from __future__ import annotations
 
 from magyro.errors import InputError
+from magyro.text import significant
 
 MAX_RATE_HZ = 10_000.0           # faster than any gyro or magnetometer magyro calibrates
 MAX_DURATION_S = 86_400.0        # a day
@@ -21,11 +22,11 @@ def check_sizes(duration_s: float, rates_hz: dict, components: int, where: str) 
             raise InputError(f"{where} [{sensor}]: rate_hz = {rate_hz:g} is above the cap of {MAX_RATE_HZ:g} Hz")
         samples = duration_s * rate_hz
         if samples > MAX_SAMPLES:
-            raise InputError(f"{where} [{sensor}]: duration_s x rate_hz = {samples:.3g} samples, above the cap of "
+            raise InputError(f"{where} [{sensor}]: duration_s x rate_hz = {significant(samples)} samples, above the cap of "
                              f"{MAX_SAMPLES:g} samples per sensor; shorten the problem or lower the rate")
     if components > MAX_COMPONENTS:
         raise InputError(f"{where} [motion]: components = {components} is above the cap of {MAX_COMPONENTS}")
     evaluations = components * duration_s * max(rates_hz.values())
     if evaluations > MAX_SINE_EVALUATIONS:
-        raise InputError(f"{where} [motion]: components x samples = {evaluations:.3g}, above the cap of "
+        raise InputError(f"{where} [motion]: components x samples = {significant(evaluations)}, above the cap of "
                          f"{MAX_SINE_EVALUATIONS:g}; use fewer components or fewer samples")
