@@ -38,8 +38,9 @@ it began).
 Issue 24's target, at most 0.8x the paper motion's std on every gyro parameter from each of the 6 poses at
 60 s and the paper's 121 deg/s, is not reached (benchmarks/plan_start_poses.py): the plan's largest ratio
 is 1.22 (from roll 90, K_g[0,2]; 1.04-1.21 from the other poses, 32 of the 72 pose-parameter pairs above
-0.8), in 102 scorings, 35 s of CPU. The paper's motion never rests and turns about all three axes at once
-through +-120 deg; turns by hand one axis at a time, each starting and stopping, fall short of it on the
+0.8), in 102 scorings, 35 s of CPU; ten times the refinement (the benchmark's `--refine 400`, 326 scorings,
+151 s of CPU) only gets to 1.18 (roll 90: bias x and y), a bias at 1.02 or more from every pose. The paper's
+motion never rests and turns about all three axes at once through +-120 deg; turns by hand one axis at a time, each starting and stopping, fall short of it on the
 bias (the largest ratio from 4 of the 6 poses), the non-orthogonality K_g[0,1]/K_g[0,2] and the
 misalignment where the field starts along one of the device's axes or diagonals. The plan searched from
 the identity pose alone (before issue 24; at 200 deg/s against problems/paper-table1.toml's motion) reached

@@ -106,14 +106,6 @@ def ratios(std: dict[str, float], reference: dict[str, float]) -> dict[str, floa
     return {k: std[k] / reference[k] if reference[k] > 0 else math.inf for k in GYRO_ROWS}
 
 
-def score(std: dict[str, float], reference: dict[str, float]) -> tuple[float, float]:
-    """(largest std / reference over the 12 gyro parameters, their geometric mean): lower is better."""
-    r = np.array(list(ratios(std, reference).values()))
-    if not np.all(np.isfinite(r)):
-        return math.inf, math.inf
-    return float(r.max()), float(np.exp(np.mean(np.log(r))))
-
-
 def peak_rate_deg_s(problem: Scenario) -> float:
     """The largest |w^b| over the gyro sample times, deg/s."""
     from magyro.studies.simulate import sample_times, truth_body_rate
