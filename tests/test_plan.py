@@ -1,13 +1,14 @@
 """`magyro plan` and the "turns" motion kind (issue 16, item 2).
 
 The turns kind: its parse errors, its body rate against its attitude, its rests. The plan: made once per module for
-60 s at 200 deg/s (about 30 s on a 2-core machine), then the issue's targets: every gyro parameter's predicted std at
-most 0.7x that of the paper's motion at the same duration and peak rate, and 30 simulated runs of the written problem
-(about 10 s with 2 jobs) whose actual spread is within 15 % of the predicted std (benchmarks/bench_plan.py prints
-the same numbers as a table).
+60 s at the paper motion's 121 deg/s with a short refinement (about 25 s of CPU), then the targets: issue 24's, every
+gyro parameter's predicted std at most 0.8x that of the paper's motion from each of 6 start poses (not reached:
+benchmarks/plan_start_poses.py prints the table), and issue 16's, 30 simulated runs of the written problem (about
+10 s with 2 jobs) whose actual spread is within 15 % of the predicted std (benchmarks/bench_plan.py prints it).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -134,11 +135,21 @@ def test_turns_pose_rate_and_rests():
 # --------------------------------------------------------------------------- the plan
 
 
+TARGET_RATE_DEG_S = 121.0      # the paper motion's own peak rate (issue 24)
+TEST_REFINEMENT = 10           # refinement evaluations here (the command's default: plan.REFINE_EVALUATIONS)
+
+
 @pytest.fixture(scope="module")
 def plan():
+    """One plan for the whole module: 60 s at the paper's 121 deg/s, one canonical comparison, a short refinement;
+    BLAS on one thread as the command line runs it (on a busy machine its threads only wait for each other)."""
+    from threadpoolctl import threadpool_limits
+
     from magyro.studies.plan import make_plan
 
-    return make_plan(60.0, max_rate_deg_s=200.0)
+    with threadpool_limits(limits=1):
+        return make_plan(60.0, max_rate_deg_s=TARGET_RATE_DEG_S, canonical=("three-axes",),
+                         refine_evaluations=TEST_REFINEMENT)
 
 
 @pytest.fixture(scope="module")
@@ -149,12 +160,32 @@ def plan_file(plan, tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_plan_beats_the_paper_motion_on_every_gyro_parameter(plan):
-    """The issue's target: at 60 s and the same peak rate, every gyro parameter's predicted std at most 0.7x that
-    of the paper's motion."""
-    ratio = plan.ratio_to_paper
-    assert set(ratio) == set(plan.std) and len(ratio) == 12
-    assert max(ratio.values()) <= 0.7, ratio
+@pytest.mark.xfail(strict=True, reason="issue 24's target is not reached: the best plan found predicts up to about "
+                                       "1.1-1.5x the paper motion's std on some bias, K_g[0,1] or misalignment from "
+                                       "some start pose (benchmarks/plan_start_poses.py prints the table)")
+def test_plan_beats_the_paper_motion_from_every_start_pose(plan):
+    """Issue 24's target: at 60 s and the paper motion's peak rate of 121 deg/s, every gyro parameter's predicted std
+    at most 0.8x that of the paper's motion started from the same pose, from each of the 6 start poses."""
+    assert len(plan.start_poses) == 6 and all(len(r) == 12 for r in plan.ratio_by_pose)
+    assert plan.worst_ratio <= 0.8, plan.pose_table()
+
+
+@pytest.mark.slow
+def test_plan_scores_are_those_of_each_start_pose_alone(plan):
+    """The search's shared computation from all poses (crlb.cramer_rao_at_poses) gives what one bound a pose gives:
+    the plan's and the paper motion's std from two of the poses, each computed on its own session, and the worst
+    ratio printed is the largest of them."""
+    from magyro.studies.crlb import with_start_pose
+    from magyro.studies.plan_scoring import gyro_std
+
+    for k in (1, 4):
+        pose = plan.start_poses[k][1]
+        alone = gyro_std(with_start_pose(plan.problem(), pose))
+        reference = gyro_std(with_start_pose(plan.reference.scenario, pose))
+        assert alone == pytest.approx(plan.pose_std[k], rel=1e-8)
+        assert reference == pytest.approx(plan.pose_reference_std[k], rel=1e-8)
+    assert plan.worst_ratio == max(max(r.values()) for r in plan.ratio_by_pose)
+    assert f"at most {plan.worst_ratio:.2f}x" in plan.table()
 
 
 @pytest.mark.slow
@@ -162,7 +193,7 @@ def test_plan_is_a_motion_a_hand_can_do(plan):
     turns = plan.turns
     assert turns[0].is_rest and turns[0].seconds >= 1.0 and turns[-1].is_rest and turns[-1].seconds >= 1.0
     assert sum(st.seconds for st in turns) == pytest.approx(60.0)
-    assert max(st.peak_rate_deg_s for st in turns) <= 200.0 + 1e-9
+    assert max(st.peak_rate_deg_s for st in turns) <= TARGET_RATE_DEG_S + 1e-9
     for st in turns:
         if not st.is_rest:
             assert abs(st.angle_deg) in (90.0, 180.0, 360.0)
@@ -170,6 +201,9 @@ def test_plan_is_a_motion_a_hand_can_do(plan):
     text = plan.table()
     assert "turn about the device's" in text and "plan/paper" in text and "three-axes" in text
     assert plan.reference.std is not None and "band x" in plan.reference.how
+    for name, pose in plan.start_poses:          # the table names every start pose with its worst ratio
+        assert any(line.split()[:1] == name.split()[:1] and f"[{', '.join(f'{v:g}' for v in pose)}]" in line
+                   for line in text.splitlines())
 
 
 @pytest.mark.slow
@@ -180,7 +214,11 @@ def test_plan_file_reads_back_as_the_plan(plan, plan_file):
     raw = parse_toml(plan_file.read_text())
     assert raw["plan"]["predicted_std"] == pytest.approx(plan.std)
     w = truth_body_rate(p, sample_times(p.gyro_rate_hz, p.duration_s))
-    assert np.rad2deg(np.linalg.norm(w, axis=1)).max() <= 200.0 + 1e-6
+    assert np.rad2deg(np.linalg.norm(w, axis=1)).max() <= TARGET_RATE_DEG_S + 1e-6
+    poses = raw["plan"]["start_poses"]
+    assert list(poses) == [name for name, _ in plan.start_poses]
+    assert [poses[name]["max_ratio"] for name in poses] == pytest.approx([max(r.values()) for r in plan.ratio_by_pose])
+    assert raw["plan"]["max_ratio_over_start_poses"] == pytest.approx(plan.worst_ratio)
 
 
 @pytest.mark.slow
@@ -208,6 +246,35 @@ def test_std_ratio_interval_is_the_sampling_error_of_a_std():
     assert 0.87 < low < 0.93 and 1.05 < high < 1.11    # 0.99 -+ 2.58 x 0.13 / sqrt(12)
     low1, high1 = std_ratio_interval(np.ones((12, 12)), 30, level=0.99)  # fully correlated: one std's spread
     assert low1 < 0.8 and high1 > 1.2
+
+
+def test_one_session_serves_every_start_pose():
+    """crlb.cramer_rao_at_poses equals cramer_rao_covariance on each pose's own simulated session."""
+    from magyro.studies.crlb import cramer_rao_at_poses, cramer_rao_covariance, with_start_pose
+    from magyro.studies.simulate import simulate
+
+    problem = _turns_problem(duration=12.0)
+    problem = dataclasses.replace(problem, mag_time_offset_s=0.004)      # the lag shifts the field samples too
+    poses = [[5.0, -10.0, 30.0], [90.0, 0.0, 0.0], [-150.0, 60.0, -120.0]]
+    jacobians: dict = {}
+    for shared, pose in zip(cramer_rao_at_poses(problem, poses, jacobians=jacobians), poses):
+        alone = with_start_pose(problem, pose)
+        np.testing.assert_allclose(shared, cramer_rao_covariance(alone, simulate(alone, 0)[0]), rtol=1e-7, atol=0)
+    assert len(jacobians) == 3                                         # one propagation Jacobian a pose
+
+
+def test_the_paper_motion_starts_at_the_start_pose_already_turning():
+    """The reference of `magyro plan` (plan_scoring.PAPER_MOTION, docs/spec.md): no rests, each angle relative to its
+    value at t = 0, a peak body rate of about 121 deg/s at 60 s on the paper's sensors."""
+    from magyro.studies.crlb import with_start_pose
+    from magyro.studies.plan_scoring import paper_motion, peak_rate_deg_s
+
+    reference = with_start_pose(dataclasses.replace(paper_motion(load_problem("paper-table1")), duration_s=60.0),
+                                [30.0, -20.0, 100.0])
+    np.testing.assert_allclose(truth_body_attitude(reference, [0.0])[0], so3.euler_to_dcm([30.0, -20.0, 100.0]),
+                               atol=1e-12)
+    assert np.rad2deg(np.linalg.norm(truth_body_rate(reference, [0.0])[0])) > 10.0
+    assert 115.0 < peak_rate_deg_s(reference) < 127.0
 
 
 # --------------------------------------------------------------------------- the command
@@ -243,7 +310,7 @@ def test_plan_command_bad_input_exits_2_with_one_message(plan_app, args, needle)
 
 
 def test_the_start_pose_is_an_instruction():
-    """The plan holds only for the start pose it was made for: the table says how to hold the device."""
+    """A start pose as an instruction (the table gives the base problem's as an example of one)."""
     from magyro import so3
     from magyro.studies.plan import start_pose_instruction
 

@@ -24,8 +24,23 @@ from magyro.nls.solve import build_problem, problem_parameters
 from magyro.result.reported import N_REPORTED, qr_split, reported_vector, std_from_covariance
 
 
-def propagate(problem: JointProblem, theta, g, cov_theta, C_ref) -> np.ndarray:
-    """Covariance of the reported vector by central differences through R = S^-1 and the QR split."""
+def propagate(problem: JointProblem, theta, g, cov_theta, C_ref, jacobians: dict | None = None) -> np.ndarray:
+    """Covariance of the reported vector by central differences through R = S^-1 and the QR split. The Jacobian
+    depends on the linearisation (g, C_ref) only, not on the data: `jacobians`, a dict, keeps it across calls
+    at the same point (the start poses of `magyro plan`'s search, one a pose for every motion scored)."""
+    if jacobians is None:
+        J = propagation_jacobian(problem, theta, g, C_ref)
+    else:
+        key = (problem.n_theta, np.asarray(theta, float).tobytes(), np.asarray(g, float).tobytes(),
+               np.asarray(C_ref, float).tobytes())
+        if key not in jacobians:
+            jacobians[key] = propagation_jacobian(problem, theta, g, C_ref)
+        J = jacobians[key]
+    return J @ cov_theta @ J.T
+
+
+def propagation_jacobian(problem: JointProblem, theta, g, C_ref) -> np.ndarray:
+    """d reported vector / d theta at theta, by central differences (`propagate`)."""
     def f(th):
         S, h, K, eps, m, tau = (np.array(v) for v in problem.physical_function(th, g))
         return reported_vector(K, eps.ravel(), S, h.ravel(), m.ravel(), C_ref, float(tau.item()))
@@ -37,20 +52,23 @@ def propagate(problem: JointProblem, theta, g, cov_theta, C_ref) -> np.ndarray:
         e = np.zeros(n)
         e[i] = step
         J[:, i] = (f(theta + e) - f(theta - e)) / (2 * step)
-    return J @ cov_theta @ J.T
+    return J
 
 
-def information_covariance(problem: JointProblem, lin: Linearisation, p, session=None) -> np.ndarray:
+def information_covariance(problem: JointProblem, lin: Linearisation, p, session=None,
+                           jacobians: dict | None = None) -> np.ndarray:
     """Covariance of the reported vector (result.REPORTED layout) from the Gauss-Newton information
     at the linearisation point; all inf where the information is singular (a direction the data do not see).
 
     Given the `session`, the field disturbance it shows is counted as the solve counts it
     (`magyro.nls.disturbance`); without, the white-noise covariance (the Cramer-Rao bound of a simulation).
+    `jacobians` keeps the propagation's Jacobian across calls at the same linearisation (`propagate`).
     """
-    return covariance_and_disturbance(problem, lin, p, session)[0]
+    return covariance_and_disturbance(problem, lin, p, session, jacobians)[0]
 
 
-def covariance_and_disturbance(problem: JointProblem, lin: Linearisation, p, session=None):
+def covariance_and_disturbance(problem: JointProblem, lin: Linearisation, p, session=None,
+                               jacobians: dict | None = None):
     """(`information_covariance`, the field disturbance measured from `session`, or None without one)."""
     reduced = reduce_hessian(problem.hessian_function(np.zeros(problem.n_x), p), problem.n_theta, problem.B)
     lam = np.linalg.eigvalsh(reduced.information)
@@ -63,7 +81,7 @@ def covariance_and_disturbance(problem: JointProblem, lin: Linearisation, p, ses
         cov_theta, disturbance = disturbance_covariance(problem, np.zeros(problem.n_x), p, reduced,
                                                         lin.C_m_i_nominal, session)
     C0, _ = qr_split(lin.K0)
-    return propagate(problem, np.zeros(problem.n_theta), p[: problem.n_glob_p], cov_theta, C0), disturbance
+    return propagate(problem, np.zeros(problem.n_theta), p[: problem.n_glob_p], cov_theta, C0, jacobians), disturbance
 
 
 def information_std(problem: JointProblem, lin: Linearisation, p, session=None) -> dict:

@@ -14,6 +14,8 @@ the plain least squares whatever the method's `loss`.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from magyro import so3
@@ -27,7 +29,7 @@ from magyro.options import Options
 from magyro.result.reported import REPORTED, std_from_covariance
 from magyro.session import Session
 from magyro.studies.scenario import Scenario
-from magyro.studies.simulate import field_i, truth_attitude
+from magyro.studies.simulate import field_i, mag_from_attitude, simulate, truth_attitude
 
 
 def truth_linearisation(problem: Scenario, t_node_s: np.ndarray) -> Linearisation:
@@ -51,6 +53,43 @@ def cramer_rao_covariance(problem: Scenario, session: Session, options: Options 
     p = jp.parameters(lin, s.mag, problem.mag_noise_std, problem.gyro_noise_density_rad_s_sqrt_hz,
                       s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, problem.mag_time_offset_s)
     return information_covariance(jp, lin, p)
+
+
+def with_start_pose(problem: Scenario, start_pose_deg) -> Scenario:
+    """The problem with its motion started from another pose: C0 = [roll, pitch, yaw] deg from ENU."""
+    motion = dataclasses.replace(problem.motion, initial_euler_deg=np.array(start_pose_deg, dtype=float))
+    return dataclasses.replace(problem, motion=motion)
+
+
+def cramer_rao_at_poses(problem: Scenario, start_poses_deg, options: Options | None = None, nls: NLS | None = None,
+                        jacobians: dict | None = None) -> list[np.ndarray]:
+    """`cramer_rao_covariance` of the problem's noise-seed-0 session started from each pose (`with_start_pose`),
+    the same numbers at a fraction of the cost: the start pose C0 moves only the field in the device. The
+    gyro readings, the attitude relative to t = 0 (C_m^i) and so the grid and the problem's graph are the
+    same from every pose, and so is the noise (the same draws); per pose only the magnetometer readings
+    (`simulate.mag_from_attitude`), the field m^i and the information differ. `jacobians` keeps the
+    propagation's Jacobian of each pose across calls (`information.propagate`)."""
+    options, nls = options or Options(), nls or NLS()
+    at = [with_start_pose(problem, pose) for pose in start_poses_deg]
+    session, _ = simulate(at[0], 0)
+    C_m_i = truth_attitude(at[0], session.t_mag_s - problem.mag_time_offset_s)
+    mag_noise = session.mag - mag_from_attitude(at[0], C_m_i)
+    built: dict[tuple, tuple] = {}      # the moving span -> (joint problem, linearisation at pose 0, C_m^i at node 0)
+    out = []
+    for pose_problem in at:
+        posed = dataclasses.replace(session, mag=mag_from_attitude(pose_problem, C_m_i) + mag_noise)
+        s = moving_session(posed, options)[0]
+        span = (s.t_gyro_s[0], s.t_gyro_s[-1], s.t_mag_s[0], s.t_mag_s[-1])
+        if span not in built:
+            grid = build_grid(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, nls.stride or default_stride(s))
+            jp = JointProblem(grid, compiled=nls.compiled, estimate_time_offset=options.estimate_time_offset)
+            built[span] = (jp, truth_linearisation(at[0], grid.t_node_s), truth_attitude(at[0], grid.t_node_s[:1])[0])
+        jp, lin, C_node0 = built[span]
+        lin = dataclasses.replace(lin, m0=C_node0.T @ field_i(pose_problem))     # truth_linearisation's m0
+        p = jp.parameters(lin, s.mag, problem.mag_noise_std, problem.gyro_noise_density_rad_s_sqrt_hz,
+                          s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, problem.mag_time_offset_s)
+        out.append(information_covariance(jp, lin, p, jacobians=jacobians))
+    return out
 
 
 def cramer_rao_std(problem: Scenario, session: Session, options: Options | None = None, nls: NLS | None = None) -> dict:

@@ -23,6 +23,7 @@ class Comparison:
     how: str                          # how it was brought to the plan's duration and peak rate
     std: dict[str, float] | None
     error: str | None = None
+    scenario: Scenario | None = dataclasses.field(default=None, repr=False)   # the motion as compared
 
 
 @dataclass
@@ -42,6 +43,9 @@ class Plan:
     searched: str                     # what the search tried
     evaluations: int
     seconds: float
+    start_poses: tuple = ()           # (name, [roll, pitch, yaw] deg) the search scored the plan from
+    pose_std: list = dataclasses.field(default_factory=list)             # the plan's std from each start pose
+    pose_reference_std: list = dataclasses.field(default_factory=list)   # the paper's motion's, from each
 
     @property
     def name(self) -> str:
@@ -50,6 +54,16 @@ class Plan:
     @property
     def ratio_to_paper(self) -> dict[str, float]:
         return ratios(self.std, self.reference.std)
+
+    @property
+    def ratio_by_pose(self) -> list[dict[str, float]]:
+        """std / the paper motion's std started from the same pose, per start pose."""
+        return [ratios(std, ref) for std, ref in zip(self.pose_std, self.pose_reference_std)]
+
+    @property
+    def worst_ratio(self) -> float:
+        """The largest std / paper motion's over the start poses and the 12 gyro parameters."""
+        return max(max(r.values()) for r in self.ratio_by_pose)
 
     @property
     def peak_rate(self) -> float:
@@ -70,11 +84,14 @@ class Plan:
                  "The motion (each turn about the device's own axis, wherever the previous turns left it; "
                  "right-hand rule: thumb along the axis, fingers curl the way to turn; start slowly, be "
                  "fastest half way, stop smoothly):"]
-        lines.append(f"  0. {start_pose_instruction(self.base.C0)}: the turns are chosen for where the field "
-                     "lies in the device, so this start pose matters")
+        lines.append(f"  0. start in any pose, e.g. {start_pose_instruction(self.base.C0).removeprefix('start ')}: "
+                     f"the turns were scored from the {len(self.start_poses)} start poses below")
         lines += instructions(self.turns)
-        lines += ["", f"Predicted one-sigma (Cramer-Rao bound, the information the solve uses) against the "
-                      f"paper's motion ({self.reference.how}):"]
+        lines += ["", *self.pose_table()]
+        e = self.base.motion.initial_euler_deg
+        lines += ["", f"Predicted one-sigma (Cramer-Rao bound, the information the solve uses) from {self.base.name}'s "
+                      f"start pose [{e[0]:g}, {e[1]:g}, {e[2]:g}] deg, against the paper's motion ({self.reference.how}) "
+                      f"and the canonical motions:"]
         others = [c for c in self.comparisons]
         head = f"  {'parameter':<22}{'plan':>11}{'paper':>11}{'plan/paper':>11}"
         head += "".join(f"{c.name:>12}" for c in others)
@@ -94,14 +111,36 @@ class Plan:
         lines.append("")
         for c in [self.reference] + others:
             lines.append(f"  {c.name}: {c.error if c.error else c.how}")
-        e = self.base.motion.initial_euler_deg
-        lines += ["", f"The plan is for the start pose of {self.base.name} (C0 = [roll, pitch, yaw] "
-                      f"[{e[0]:g}, {e[1]:g}, {e[2]:g}] deg from ENU, x east, y north, z up) in a field of dip "
-                      f"{self.base.dip_deg:g} deg; from another start pose the same turns predict a larger std "
-                      f"(see magyro/studies/plan.py).",
-                  f"Search: {self.searched}", f"Chosen: {self.template}; {self.evaluations} motions scored in "
-                  f"{self.seconds:.0f} s."]
+        lines += ["", f"Search: {self.searched}", f"Chosen: {self.template}; {self.evaluations} scorings in "
+                      f"{self.seconds:.0f} s."]
         return "\n".join(lines)
+
+    def pose_table(self) -> list[str]:
+        """Per start pose: the field in the device, the largest std / paper motion's (and which parameter), the
+        geometric mean of the 12 ratios."""
+        from magyro.studies.plan_scoring import field_in_device
+
+        lines = [f"From any of these start poses every gyro parameter's predicted std is at most "
+                 f"{self.worst_ratio:.2f}x that of the paper's motion started from the same pose (C0 = [roll, pitch, "
+                 f"yaw] deg from ENU: x east, y north, z up; the field of dip {self.base.dip_deg:g} deg in the device):",
+                 f"  {'start pose':<12}{'C0 deg':>18}{'field in device':>24}{'worst ratio':>13}  {'(parameter)':<20}"
+                 f"{'geo. mean':>10}"]
+        for (name, pose), r in zip(self.start_poses, self.ratio_by_pose):
+            worst = max(r, key=r.get)
+            field = "[" + ", ".join(f"{v:+.2f}" for v in field_in_device(self.base, pose)) + "]"
+            pose_text = "[" + ", ".join(f"{v:g}" for v in pose) + "]"
+            mean = float(np.exp(np.mean(np.log(list(r.values())))))
+            lines.append(f"  {name:<12}{pose_text:>18}{field:>24}{r[worst]:>13.2f}  {'(' + worst + ')':<20}{mean:>10.2f}")
+        return lines + ["", "Per parameter: std / the paper motion's from the same start pose:", *self.pose_ratio_table()]
+
+    def pose_ratio_table(self) -> list[str]:
+        """The 12 ratios (rows) from each start pose (columns), and the largest of each column."""
+        names = [name for name, _ in self.start_poses]
+        lines = [f"  {'parameter':<22}" + "".join(f"{n:>11}" for n in names)]
+        for row in GYRO_ROWS:
+            lines.append(f"  {row:<22}" + "".join(f"{r[row]:>11.2f}" for r in self.ratio_by_pose))
+        lines.append(f"  {'largest':<22}" + "".join(f"{max(r.values()):>11.2f}" for r in self.ratio_by_pose))
+        return lines
 
     def to_problem_toml(self) -> str:
         """A complete problem file: the base sensors with the plan's noise levels, the turns, and the plan's
@@ -162,6 +201,11 @@ class Plan:
             f"search = {q(self.searched)}",
             f"reference = {q(self.reference.how)}",
             f"max_ratio_to_reference = {_num(round(max(ratio.values()), 6))}",
+            f"max_ratio_over_start_poses = {_num(round(self.worst_ratio, 6))}",
+            "",
+            "[plan.start_poses]   # [roll, pitch, yaw] deg from ENU: the plan's std / the paper motion's from there",
+            *[f"{q(name)} = {{euler_deg = {_vec(pose)}, max_ratio = {_num(round(max(r.values()), 6))}}}"
+              for (name, pose), r in zip(self.start_poses, self.ratio_by_pose)],
             "",
             "[plan.predicted_std]",
             *[f"{q(k)} = {_num(v)}" for k, v in self.std.items()],
@@ -181,11 +225,17 @@ class Plan:
             "duration_s": self.duration_s, "max_rate_deg_s": self.max_rate_deg_s,
             "turns": [{"rest_s": st.seconds} if st.is_rest else
                       {"axis": st.axis.tolist(), "angle_deg": st.angle_deg, "seconds": st.seconds} for st in self.turns],
-            "std": self.std, "reference": dataclasses.asdict(self.reference),
-            "comparisons": [dataclasses.asdict(c) for c in self.comparisons],
+            "std": self.std, "reference": _comparison_dict(self.reference),
+            "comparisons": [_comparison_dict(c) for c in self.comparisons],
+            "start_poses": [{"name": name, "euler_deg": list(pose), "std": std, "ratio": r}
+                            for (name, pose), std, r in zip(self.start_poses, self.pose_std, self.ratio_by_pose)],
             "template": self.template, "searched": self.searched, "evaluations": self.evaluations,
             "seconds": self.seconds,
         }
+
+
+def _comparison_dict(c: Comparison) -> dict:
+    return {"name": c.name, "how": c.how, "std": c.std, "error": c.error}
 
 
 def _check_round_trip(text: str, plan: "Plan") -> None:

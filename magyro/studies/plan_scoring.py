@@ -47,16 +47,63 @@ def gyro_std(problem: Scenario) -> dict[str, float]:
     return {name: float(v) for name, v in zip(GYRO_ROWS, sd)}
 
 
-def ratios(std: dict[str, float], reference: dict[str, float]) -> dict[str, float]:
-    return {k: std[k] / reference[k] if reference[k] > 0 else math.inf for k in GYRO_ROWS}
+# The start poses a plan is scored from (C0 = [roll, pitch, yaw] deg from ENU; x east, y north, z up at
+# identity): the base pose, a quarter turn about each world axis, two oblique poses. Only where the field
+# lies in the device matters (the attitude relative to the start is the same from every pose: crlb.
+# cramer_rao_at_poses), and these put it (the unit field of dip 60 deg, in device axes: `field_in_device`)
+# at [0, 0.5, -0.87], [0, -0.87, -0.5], [0.87, 0.5, 0], [0.5, 0, -0.87], and, off every axis, near the
+# diagonals: [0.53, 0.62, 0.57] and [-0.53, 0.57, -0.62].
+START_POSES: tuple[tuple[str, tuple[float, float, float]], ...] = (
+    ("identity", (0.0, 0.0, 0.0)), ("roll 90", (90.0, 0.0, 0.0)), ("pitch 90", (0.0, 90.0, 0.0)),
+    ("yaw 90", (0.0, 0.0, 90.0)), ("oblique 1", (-150.0, 60.0, -120.0)), ("oblique 2", (-60.0, -60.0, 120.0)))
+
+# The paper's motion the plan is compared with (docs/spec.md, `magyro plan`): roll, pitch and yaw (the body's z,
+# y, x factors) each a sum of 4 sinusoids of 0.04-0.2 Hz, amplitudes 120, 54 and 120 deg, no rests, each angle
+# relative to its value at t = 0 (no ramp: it starts at the start pose already turning). Draw 7 of magyro's
+# motion generator: its own peak body rate at 60 s is 120.8 deg/s, the paper's 121.
+PAPER_MOTION = {"kind": "euler", "axes": ("z", "y", "x"), "amplitude_deg": (120.0, 54.0, 120.0),
+                "band_hz": (0.04, 0.2), "components": 4, "seed": 7, "ramp_s": 0.0}
 
 
-def score(std: dict[str, float], reference: dict[str, float]) -> tuple[float, float]:
-    """(largest std / reference over the 12 gyro parameters, their geometric mean): lower is better."""
-    r = np.array(list(ratios(std, reference).values()))
+def paper_motion(base: Scenario) -> Scenario:
+    """The base sensors and start pose with the paper's motion (PAPER_MOTION)."""
+    motion = dataclasses.replace(base.motion, **{k: (np.array(v, float) if k == "amplitude_deg" else v)
+                                                for k, v in PAPER_MOTION.items()},
+                                 rest_start_s=0.0, rest_end_s=0.0, turns=())
+    return dataclasses.replace(base, name="paper", motion=motion, source_path="",
+                               description="the paper's motion (magyro.studies.plan_scoring.PAPER_MOTION)")
+
+
+def field_in_device(problem: Scenario, start_pose_deg) -> np.ndarray:
+    """The problem's unit field in the device's axes at the start pose (C0^T m^w / |m^w|)."""
+    from magyro import so3
+
+    field = np.asarray(problem.field_w, float)
+    return so3.euler_to_dcm(np.array(start_pose_deg, float)).T @ (field / np.linalg.norm(field))
+
+
+def pose_std(problem: Scenario, start_poses_deg, jacobians: dict | None = None) -> list[dict[str, float]]:
+    """`gyro_std` of the problem started from each pose (crlb.cramer_rao_at_poses: one session for all)."""
+    from magyro.studies.crlb import cramer_rao_at_poses
+
+    out = []
+    for cov in cramer_rao_at_poses(problem, start_poses_deg, jacobians=jacobians):
+        sd = np.sqrt(np.maximum(np.diag(cov[:12, :12]), 0.0))
+        out.append({name: float(v) for name, v in zip(GYRO_ROWS, sd)})
+    return out
+
+
+def pose_score(stds: list[dict], references: list[dict]) -> tuple[float, float]:
+    """(the largest std / reference over the poses and the 12 gyro parameters, the geometric mean of all the
+    ratios): the plan's score from several start poses, lower is better."""
+    r = np.array([list(ratios(s, ref).values()) for s, ref in zip(stds, references)])
     if not np.all(np.isfinite(r)):
         return math.inf, math.inf
     return float(r.max()), float(np.exp(np.mean(np.log(r))))
+
+
+def ratios(std: dict[str, float], reference: dict[str, float]) -> dict[str, float]:
+    return {k: std[k] / reference[k] if reference[k] > 0 else math.inf for k in GYRO_ROWS}
 
 
 def peak_rate_deg_s(problem: Scenario) -> float:

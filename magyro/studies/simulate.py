@@ -8,8 +8,9 @@ rotations about fixed body axes,
 
     C_b^w(t) = C0 Exp(a_1(t) u_1) Exp(a_2(t) u_2) ... Exp(a_n(t) u_n),
 
-with each angle a_j(t) = window_j(t) * sum_k A_k sin(2 pi f_k t + phi_k), so the
-body rate is exact:
+with each angle a_j(t) = window_j(t) * sum_k A_k sin(2 pi f_k t + phi_k) (with ramp_s 0, no
+window: the multisine minus its value at t = 0, so the body starts at C0 already turning, as the
+paper's motion does; `magyro plan` compares with it), so the body rate is exact:
 
     w^b(t) = sum_j (prod_{l>j} Exp(a_l u_l))^T adot_j u_j.
 
@@ -114,9 +115,12 @@ def multisine(t: np.ndarray, amps: np.ndarray, freqs: np.ndarray, phases: np.nda
 
 
 def factor_angles(factor: Factor, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """a(t) and adot(t), exactly zero outside the factor's window."""
-    w, wdot = window(t, factor.start_s, factor.stop_s, factor.ramp_s)
+    """a(t) and adot(t), exactly zero outside the factor's window; with no ramp (ramp_s 0) no window, the angle
+    taken relative to its value at t = 0 (the motion starts at C0, already turning)."""
     s, sdot = multisine(t, factor.amplitudes_rad, factor.freqs_hz, factor.phases_rad)
+    if factor.ramp_s == 0:
+        return s - multisine(np.zeros(1), factor.amplitudes_rad, factor.freqs_hz, factor.phases_rad)[0], sdot
+    w, wdot = window(t, factor.start_s, factor.stop_s, factor.ramp_s)
     return w * s, wdot * s + w * sdot
 
 
@@ -148,11 +152,12 @@ def turn_steps(problem: Scenario) -> TurnSteps:
     start = np.concatenate([[0.0], np.cumsum(seconds)[:-1]])
     axis = np.array([np.zeros(3) if st.is_rest else np.asarray(st.axis, float) for st in steps])
     angle = np.array([math.radians(st.angle_deg) for st in steps])
+    step_rotation = so3.exp_so3(angle[:, None] * axis)      # all steps at once: one call, not one a step
     before = np.empty((len(steps), 3, 3))
     P = np.eye(3)
     for j in range(len(steps)):
         before[j] = P
-        P = P @ so3.exp_so3(angle[j] * axis[j])
+        P = P @ step_rotation[j]
     return TurnSteps(start, seconds, axis, angle, before)
 
 
@@ -239,7 +244,12 @@ def gyro_clean(problem: Scenario, t_s: np.ndarray) -> np.ndarray:
 
 def mag_clean(problem: Scenario, t_stamp_s: np.ndarray) -> np.ndarray:
     """Noise-free y_m = R^-1 C_i^m m^i + h at the stamps (field taken at stamp - time_offset)."""
-    C_m_i = truth_attitude(problem, t_stamp_s - problem.mag_time_offset_s)
+    return mag_from_attitude(problem, truth_attitude(problem, t_stamp_s - problem.mag_time_offset_s))
+
+
+def mag_from_attitude(problem: Scenario, C_m_i: np.ndarray) -> np.ndarray:
+    """Noise-free y_m = R^-1 C_i^m m^i + h at the attitudes C_m^i (N, 3, 3). C_m^i does not depend on the start
+    pose C0 (it is relative to t = 0), m^i does: one attitude serves every start pose (crlb.cramer_rao_at_poses)."""
     m_m = np.einsum("nji,j->ni", C_m_i, field_i(problem))  # C_i^m m^i
     return m_m @ np.linalg.inv(problem.R).T + problem.hard_iron
 
