@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -40,6 +41,20 @@ def fleet(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("fleet")
     simulate_fleet(load_problem("production-line"), [0, 1, 2], folder)
     return folder
+
+
+@pytest.fixture(scope="module")
+def solved_fleet(fleet, tmp_path_factory):
+    """(result, output folder) of the fleet batched once with the defaults; tests that go on from a solved fleet
+    work on a copy of the folder (`solved_copy`), so its three solves are made once for the module."""
+    out = tmp_path_factory.mktemp("solved") / "out"
+    return run_batch([fleet / "manifest.csv"], out), out
+
+
+def solved_copy(solved_fleet, tmp_path: Path) -> Path:
+    out = tmp_path / "out"
+    shutil.copytree(solved_fleet[1], out)
+    return out
 
 
 # the hostile inputs: real data degraded (with the exit code of the right refusal), and files that are not sessions
@@ -101,8 +116,8 @@ def test_broken_sessions_are_named_with_their_cause_and_the_good_ones_calibrated
     assert all(device in html for device in expected)
 
 
-def test_devices_recover_their_own_truth_within_their_std(fleet, tmp_path):
-    result = run_batch([fleet / "manifest.csv"], tmp_path / "out")
+def test_devices_recover_their_own_truth_within_their_std(fleet, solved_fleet):
+    result, _ = solved_fleet
     for row in result.rows:
         truth = json.loads((fleet / f"{Path(row['session']).stem}.truth.json").read_text())
         K_g, bias = np.array(truth["gyro"]["K_g"]), np.array(truth["gyro"]["bias_deg_s"])
@@ -111,23 +126,23 @@ def test_devices_recover_their_own_truth_within_their_std(fleet, tmp_path):
             assert abs(row[f"bias_deg_s_{a}"] - bias[i]) < 4 * row[f"std_bias_deg_s_{a}"]
 
 
-def test_limits_rejudge_the_fleet_without_solving_again(fleet, tmp_path):
-    first = run_batch([fleet / "manifest.csv"], tmp_path / "out")
+def test_limits_rejudge_the_fleet_without_solving_again(fleet, solved_fleet, tmp_path):
+    first, _ = solved_fleet
     assert (first.solved, first.reused) == (3, 0)
     biggest = max(abs(r["bias_deg_s_x"]) for r in first.rows)
     strict = Limits(max_abs_bias_deg_s=0.999 * biggest)
-    second = run_batch([fleet / "manifest.csv"], tmp_path / "out", limits=strict)
+    second = run_batch([fleet / "manifest.csv"], solved_copy(solved_fleet, tmp_path), limits=strict)
     assert (second.solved, second.reused) == (0, 3)
     rejected = [r for r in second.rows if r["verdict"] == "rejected"]
     assert len(rejected) >= 1 and all("bias_deg_s" in r["verdict_reason"] for r in rejected)
 
 
-def test_a_changed_session_or_option_is_solved_again(fleet, tmp_path):
-    run_batch([fleet / "manifest.csv"], tmp_path / "out")
-    again = run_batch([fleet / "manifest.csv"], tmp_path / "out", redo=True)
+def test_a_changed_session_or_option_is_solved_again(fleet, solved_fleet, tmp_path):
+    out = solved_copy(solved_fleet, tmp_path)
+    again = run_batch([fleet / "manifest.csv"], out, redo=True)
     assert (again.solved, again.reused) == (3, 0)
     from magyro.options import Options
-    other = run_batch([fleet / "manifest.csv"], tmp_path / "out", Options(estimate_time_offset=False))
+    other = run_batch([fleet / "manifest.csv"], out, Options(estimate_time_offset=False))
     assert (other.solved, other.reused) == (3, 0)
 
 
@@ -161,9 +176,10 @@ def test_a_killed_batch_finishes_the_rest_without_redoing_a_device(tmp_path):
 # --------------------------------------------------------------------------- the command line
 
 
-def test_cli_exit_codes_and_messages(fleet, tmp_path):
+def test_cli_exit_codes_and_messages(fleet, solved_fleet, tmp_path):
     limits = tmp_path / "limits.toml"
     limits.write_text("[limits]\nmax_abs_bias_deg_s = 1e-6\n")
+    solved_copy(solved_fleet, tmp_path)      # the solves are kept: this is about the command's exits and messages
     r = subprocess.run(MAGYRO + ["batch", str(fleet / "manifest.csv"), "-o", str(tmp_path / "out"), "--limits",
                                  str(limits)], capture_output=True, text=True, timeout=300)
     assert r.returncode == 1 and "3 of 3 devices not accepted (3 rejected, 0 failed)" in r.stderr, r.stderr
