@@ -62,6 +62,7 @@ def spiky(session, fraction: float, size: float, seed: int = 0):
     return dataclasses.replace(session, mag=mag)
 
 
+@pytest.mark.heavy
 @pytest.mark.slow
 def test_loss_huber_resists_magnetometer_spikes_on_a_real_recording(tmp_path, run_magyro):
     """1 % of BROAD trial 02's magnetometer samples spiked by 40 uT (55 sigma), the spike repair turned off: the

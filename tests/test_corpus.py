@@ -45,6 +45,7 @@ def differences(cal, reference) -> tuple[float, float, float]:
     return ppm, bias, mis
 
 
+@pytest.mark.heavy
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["burst stamps (0.25 s)", "20 magnetometer spikes", "magnetometer 65 Hz held",
                                   "magnetometer clock +2 %", "magnetometer 0.3 s late"])
@@ -56,6 +57,7 @@ def test_repaired_within_the_targets(name, clean):
     assert any(f.repaired for f in cal.recording.findings), cal.recording.findings
 
 
+@pytest.mark.heavy
 @pytest.mark.slow
 def test_a_drifting_magnetometer_clock_is_repaired_to_within_the_scale_and_bias_targets(clean):
     """+2000 ppm: the lag line the check measures leaves 0.2 deg of misalignment (target 0.1)."""
@@ -65,6 +67,7 @@ def test_a_drifting_magnetometer_clock_is_repaired_to_within_the_scale_and_bias_
     assert [f for f in cal.recording.findings if f.kind == "clock_drift" and f.repaired]
 
 
+@pytest.mark.heavy
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["gyro clipped at 250 deg/s", "gyro clipped at 1000 deg/s", "30 s hole"])
 def test_data_lost_to_clipping_or_a_hole_keeps_the_bias_target(name, clean):

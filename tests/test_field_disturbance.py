@@ -96,6 +96,7 @@ def test_a_known_field_disturbance_is_measured_and_its_std_matches_the_spread():
     assert pooled_white < 0.8, pooled_white
 
 
+@pytest.mark.heavy
 @pytest.mark.slow
 def test_on_a_real_recording_the_halves_agree_within_the_std():
     """BROAD trial 02 (shipped): the field wanders by ~0.7 % (docs/real-data.md section 2), the std is about

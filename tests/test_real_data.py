@@ -236,6 +236,7 @@ def field_warnings(cal) -> list[str]:
 
 
 @pytest.mark.broad
+@pytest.mark.heavy
 @pytest.mark.slow
 @needs_broad
 def test_magnet_beside_the_path_is_found_named_and_cut(broad30):
@@ -251,6 +252,7 @@ def test_magnet_beside_the_path_is_found_named_and_cut(broad30):
 
 
 @pytest.mark.broad
+@pytest.mark.heavy
 @pytest.mark.slow
 @needs_broad
 def test_undisturbed_trial_gives_no_field_warning(broad09):
@@ -259,6 +261,7 @@ def test_undisturbed_trial_gives_no_field_warning(broad09):
 
 
 @pytest.mark.broad
+@pytest.mark.heavy
 @pytest.mark.slow
 @needs_broad
 def test_split_half_check_holds_with_the_std_that_counts_the_room(broad09):
