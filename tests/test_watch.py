@@ -305,7 +305,9 @@ def test_pipeline_end_to_end(tmp_path):
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_a_signal_mid_stream_still_saves_the_session_whole(tmp_path, sig):
     out = tmp_path / "s.csv"
-    producer = subprocess.Popen(stream_command("three-axes", 10), stdout=subprocess.PIPE, env=env())
+    # paced 3x real time (20 s for the 60 s recording): the signal at 5 s of data comes long before the end of input
+    # even on a loaded machine (at 10x the stream could end before the signal, and the watch said "end of input")
+    producer = subprocess.Popen(stream_command("three-axes", 3), stdout=subprocess.PIPE, env=env())
     watcher = subprocess.Popen(cli_prefix() + ["watch", "-", "-o", str(out)], stdin=producer.stdout,
                                stderr=subprocess.PIPE, text=True, env=env())
     producer.stdout.close()
