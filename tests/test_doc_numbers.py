@@ -85,6 +85,7 @@ def test_inline_and_line_blocks_are_rewritten_in_their_form():
 
 
 @pytest.mark.broad
+@pytest.mark.heavy
 @pytest.mark.slow
 def test_the_record_is_what_trial_02_gives_now():
     """Provenance: BROAD trial 02 measured now (as benchmarks/broad_trials.py does) gives the record's row."""

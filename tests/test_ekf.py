@@ -381,6 +381,7 @@ def without_timing(path) -> dict:
     return data
 
 
+@pytest.mark.heavy
 def test_history_changes_no_number_on_a_real_recording(broad07_ekf):
     """--history only writes the filter's history: the JSON is the same, number for number (the history path
     used to skip the recording check and its repairs: bias z +6.39 deg/s instead of +1.58)."""
@@ -392,6 +393,7 @@ def test_history_changes_no_number_on_a_real_recording(broad07_ekf):
     np.testing.assert_allclose(history[list(BIAS_NAMES)].to_numpy()[-1], plain.bias_deg_s, rtol=1e-12)
 
 
+@pytest.mark.heavy
 def test_broad07_bias_agrees_with_the_rests_or_is_flagged(broad07_ekf):
     """The bad case: at no magnetometer lag the EKF gave bias z +1.58 +/- 0.008 deg/s against 0.23 at rest,
     quietly. Now it uses the front end's lag (about 11 ms), its std counts the room, and its bias is within

@@ -207,8 +207,12 @@ def test_the_page_opens_offline_in_a_browser(built):
     assert 0 < load_ms < MAX_LOAD_MS
 
 
-def test_command_line_writes_the_page_and_refuses_bad_input(built, tmp_path, run_magyro, assert_plain_failure):
-    """`magyro report` over report_file: progress on stderr, the verdict on stdout; -q silent; exit 2 on bad input."""
+def test_command_line_writes_the_page_and_refuses_bad_input(built, tmp_path, run_magyro, assert_plain_failure,
+                                                           solve_cache):
+    """`magyro report` over report_file: progress on stderr, the verdict on stdout; -q silent (shown on the shorter
+    simulated phone session, solved once per run); exit 2 on bad input."""
+    from magyro.io import write_session
+
     _, cal_path, _, _ = built
     out = tmp_path / "r.html"
     result = run_magyro("report", SESSION, cal_path, "-o", out, "--no-split-check")
@@ -216,7 +220,11 @@ def test_command_line_writes_the_page_and_refuses_bad_input(built, tmp_path, run
     assert "report: dead reckoning" in result.stderr and f"report written to {out}" in result.stdout
     page = out.read_text(encoding="utf-8")
     assert "The split-half check was not run:" in page
-    quiet = run_magyro("report", SESSION, cal_path, "-o", tmp_path / "q.html", "--no-split-check", "-q")
+    phone = solve_cache("phone-module", 11)
+    write_session(phone.session, tmp_path / "phone.parquet")
+    phone.cal.to_json(tmp_path / "phone.json")
+    quiet = run_magyro("report", tmp_path / "phone.parquet", tmp_path / "phone.json", "-o", tmp_path / "q.html",
+                       "--no-split-check", "-q")
     assert quiet.returncode == 0 and quiet.stdout == "" and quiet.stderr == ""
     missing = tmp_path / "none.html"
     message = assert_plain_failure(run_magyro("report", SESSION, tmp_path / "nope.json", "-o", missing, "-q"), 2)
