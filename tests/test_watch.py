@@ -308,8 +308,11 @@ def test_a_signal_mid_stream_still_saves_the_session_whole(tmp_path, sig):
     # paced 3x real time (20 s for the 60 s recording): the signal at 5 s of data comes long before the end of input
     # even on a loaded machine (at 10x the stream could end before the signal, and the watch said "end of input")
     producer = subprocess.Popen(stream_command("three-axes", 3), stdout=subprocess.PIPE, env=env())
+    # Ctrl-C as in a terminal's foreground: a test run started in the background (nohup, `&`) hands its children
+    # SIGINT ignored, and a Python started so keeps ignoring it
     watcher = subprocess.Popen(cli_prefix() + ["watch", "-", "-o", str(out)], stdin=producer.stdout,
-                               stderr=subprocess.PIPE, text=True, env=env())
+                               stderr=subprocess.PIPE, text=True, env=env(),
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     producer.stdout.close()
     try:
         seen = wait_for_session_time(watcher, 5.0)   # samples have arrived, the 60 s recording is not over
