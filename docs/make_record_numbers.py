@@ -117,9 +117,12 @@ def ratio_span(record: dict) -> str:
 
 
 def blocks(record: dict | None = None) -> dict[str, str]:
+    """The page's blocks: the trials' (this module) and sections 2 and 4's (docs/real_data_numbers.py)."""
+    import real_data_numbers
+
     record = record or read_record(RECORD)
     return {"trials": trials_block(record), "day-b": day_b_block(record),
-            "dead-reckoning-target": f"met, ratios {ratio_span(record)}"}
+            "dead-reckoning-target": f"met, ratios {ratio_span(record)}", **real_data_numbers.blocks(record)}
 
 
 def main(argv: list[str]) -> int:
