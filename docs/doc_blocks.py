@@ -80,10 +80,13 @@ def commit() -> str:
     return done.stdout.strip() or "unknown"
 
 
-def write_record(name: str, record: dict) -> Path:
+def write_record(name: str, record: dict, compact: bool = False) -> Path:
+    """docs/numbers/NAME.json; `compact`: one line (a record of many runs)."""
     RECORDS.mkdir(exist_ok=True)
     path = RECORDS / f"{name}.json"
-    path.write_text(json.dumps(record, indent=1, sort_keys=True, default=float) + "\n", encoding="utf-8")
+    text = (json.dumps(record, sort_keys=True, separators=(",", ":"), default=float) if compact
+            else json.dumps(record, indent=1, sort_keys=True, default=float))
+    path.write_text(text + "\n", encoding="utf-8")
     return path
 
 
