@@ -151,6 +151,11 @@ def blocks(trials: dict) -> dict[str, str]:
     """The blocks of these records that exist (a page may be rendered before a record is measured)."""
     out = {"magnet-refusals": refusals_block(trials),
            "day-b-yaw": f"{trials['day_b_peak_to_peak']['misalignment_deg'][2]:.2f}"}
+    if (RECORDS / "trajectory-accuracy.json").is_file():
+        t = read_record("trajectory-accuracy")
+        z = [f"{v:.1f}" for v in t["broad_02"]["rms_z_per_axis"]]
+        out["trajectory-z"] = (f"{', '.join(z[:-1])} and {z[-1]} (`python benchmarks/trajectory_accuracy.py`, "
+                               f"{t['date']})")
     if (RECORDS / f"{STD_RECORD}.json").is_file():
         s = read_record(STD_RECORD)
         out.update({"std-table": std_table_block(s), "std-summary": std_summary_block(s),
