@@ -31,7 +31,7 @@ def main(paths, out: Path | None = None) -> None:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from machine_load import busy_cpu_s, other_load_line, own_cpu_s, provenance
 
-    start, rows = (time.perf_counter(), busy_cpu_s(), own_cpu_s()), []
+    load_start, rows = (time.perf_counter(), busy_cpu_s(), own_cpu_s()), []
     print(f"{'session':<24} {'samples':>8} {'check (ms)':>11} {'solve (s)':>10} {'share':>7}")
     for path in paths:
         session = magyro.load_session(path)
@@ -43,7 +43,7 @@ def main(paths, out: Path | None = None) -> None:
         samples = len(session.t_gyro_s) + len(session.t_mag_s)
         print(f"{Path(path).name:<24} {samples:>8} {1000 * check_s:>11.1f} {solve_s:>10.2f} {check_s / solve_s:>7.1%}")
         rows.append({"session": Path(path).name, "samples": samples, "check_s": check_s, "solve_s": solve_s})
-    load = other_load_line(start)
+    load = other_load_line(load_start)
     print(load)
     if out:
         record = {"rows": rows, "other_load": load,
