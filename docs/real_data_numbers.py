@@ -12,13 +12,14 @@ from __future__ import annotations
 import numpy as np
 
 import doc_blocks
-from doc_blocks import RECORDS, fixed, fmt, read_record, table
+from doc_blocks import RECORDS, fixed, fmt, read_record, span, table
 
 STD_RECORD = "std-on-real-data"
 MAGNETS_RECORD = "attached-magnets"
 GROUP_LABELS = {"scale": "scale factors", "non-orthogonality": "non-orthogonality", "bias": "bias",
                 "misalignment": "misalignment"}
 MAGNET_LABELS = {"32": "32, 1 cm", "34": "34, 3 cm", "36": "36, 5 cm"}
+BIAS_TARGET_DEG_S = 0.05   # the real-data issue's target: bias within this of the rest mean
 
 
 def measured(record: dict) -> str:
@@ -151,6 +152,10 @@ def blocks(trials: dict) -> dict[str, str]:
     """The blocks of these records that exist (a page may be rendered before a record is measured)."""
     out = {"magnet-refusals": refusals_block(trials),
            "day-b-yaw": f"{trials['day_b_peak_to_peak']['misalignment_deg'][2]:.2f}"}
+    if (RECORDS / f"{REFERENCE_RECORD}.json").is_file():
+        r = read_record(REFERENCE_RECORD)
+        out.update({"ref-frames": reference_frames_block(r), "ref-ideal": ideal_block(r),
+                    "ref-magnets": reference_magnets_block(r), **reference_prose(r)})
     if (RECORDS / "trajectory-accuracy.json").is_file():
         t = read_record("trajectory-accuracy")
         z = [f"{v:.1f}" for v in t["broad_02"]["rms_z_per_axis"]]
@@ -165,3 +170,87 @@ def blocks(trials: dict) -> dict[str, str]:
         out.update({"magnets-intro": magnets_intro_block(m), "magnets-table": magnets_table_block(m),
                     "magnets-summary": magnets_summary_block(m)})
     return out
+
+
+# --------------------------------------------------------------------------- sections 3 and 4: the reference
+
+REFERENCE_RECORD = "broad-reference"   # benchmarks/broad_reference.py --ideal-magnetometer --out
+DAY_B = ("02", "05", "07", "09")
+
+
+def reference_frames_block(rec: dict) -> str:
+    d, table_ii = rec["day_b"], rec["paper_table_ii"]
+    rows = [["gyro frame against the optical body, C_b_t (deg)", *(fixed(v, 2) for v in d["C_b_t_euler_deg"]), "-"],
+            ["reference C_b_m = C_m_t^T C_b_t (deg)", *(fixed(v, 2) for v in d["C_b_m_euler_deg"]),
+             doc_blocks.g(table_ii["misalignment_deg"])],
+            ["same, with a linear field gradient fitted from the optical position (deg)",
+             *(fixed(v, 2) for v in d["C_b_m_euler_deg_gradient"]), doc_blocks.g(table_ii["misalignment_deg"])]]
+    return (f"M{measured(rec)[1:]}:\n\n"
+            + table([f"day B ({', '.join(d['trials'])}), peak to peak", "x / roll", "y / pitch", "z / yaw",
+                     "Table II"], rows, left=(0,)))
+
+
+def reference_prose(rec: dict) -> dict[str, str]:
+    d, t = rec["day_b"], rec["trials"]
+    grad = [t[k]["mag"]["gradient"]["G_percent_per_m"] for k in d["trials"]]
+    ideal = {k: r["ideal"]["scale_ppm"] for k, r in t.items() if "ideal" in r}
+    magnets = [v for k in MAGNET_LABELS if k in ideal for v in ideal[k]]
+    undisturbed = [v for k in ideal if k not in MAGNET_LABELS for v in ideal[k]]
+    days = [k for k in DAY_B if "ideal" in t.get(k, {})]
+    ideal_bias_p2p = np.ptp(np.array([t[k]["ideal"]["bias_deg_s"] for k in days]), axis=0)
+    off = [k for k, r in t.items() if "ideal" in r and k not in MAGNET_LABELS
+           and np.max(np.abs(np.asarray(r["ideal"]["bias_deg_s"]) - np.asarray(r["gyro"]["rest_bias_deg_s"])))
+           > BIAS_TARGET_DEG_S]
+    rests = np.array([t[k]["gyro"]["rest_bias_deg_s"] for k in d["trials"]])
+    motion_x = [t[k]["gyro"]["bias_minus_rest_deg_s"][0] for k in d["trials"]]
+    same_sign = all(v < 0 for v in motion_x) or all(v > 0 for v in motion_x)
+    return {"ref-bias-scatter": f"{ideal_bias_p2p.min():.2f}-{ideal_bias_p2p.max():.2f} deg/s",
+            "ref-bias-trials": (", ".join(off[:-1]) + " and " + off[-1]) if len(off) > 1 else (off[0] if off else "none"),
+            "ref-rest-repeat": (f"{np.ptp(rests, axis=0).max():.3f} deg/s over day B (z: "
+                                f"{', '.join(f'{v:.4f}' for v in rests[:, 2])})"),
+            "ref-motion-minus-rest": (f"x {min(motion_x):+.2f} to {max(motion_x):+.2f} deg/s in "
+                                      f"{'all ' if same_sign else ''}{len(motion_x)} day-B trials"
+                                      + ("" if same_sign else ", not all of one sign")),
+            "ref-gyro-still": f"{max(d['C_b_t_euler_deg']):.1f} deg",
+            "ref-mag-moves": f"{max(d['C_b_m_euler_deg']):.1f} deg",
+            "ref-gradient": f"{min(grad):.0f}-{max(grad):.0f} %",
+            "ref-magnet-scales": f"{min(magnets):+.0f} to {max(magnets):+.0f} ppm",
+            "ref-undisturbed-scales": f"{min(undisturbed):+.0f} to {max(undisturbed):+.0f} ppm"}
+
+
+def ideal_block(rec: dict) -> str:
+    t, table_ii = rec["trials"], rec["paper_table_ii"]
+    days = [k for k in DAY_B if "ideal" in t.get(k, {})]
+
+    def p2p(key):
+        return np.ptp(np.array([t[k]["ideal"][key] for k in days]), axis=0)
+
+    def verdict(values, limit):
+        return f"{doc_blocks.g(limit)}: " + ("**met**" if np.all(values <= limit) else "not met")
+
+    worst = {k: float(np.max(np.abs(np.asarray(r["ideal"]["bias_deg_s"]) - np.asarray(r["gyro"]["rest_bias_deg_s"]))))
+             for k, r in t.items() if "ideal" in r and k not in MAGNET_LABELS}
+    rows = [["scale (ppm)", *(f"{v:.0f}" for v in p2p("scale_ppm")), verdict(p2p("scale_ppm"), table_ii["scale_ppm"])],
+            ["non-orthogonality xy xz yz (deg)", *(f"{v:.3f}" for v in p2p("nonorth_deg")),
+             verdict(p2p("nonorth_deg"), table_ii["nonorth_deg"])],
+            ["bias (deg/s)", *(f"{v:.3f}" for v in p2p("bias_deg_s")), verdict(p2p("bias_deg_s"), table_ii["bias_deg_s"])],
+            [f"bias - rest mean, worst axis, trials {' / '.join(worst)} (deg/s)",
+             " / ".join(f"{v:.3f}" for v in worst.values()), "", "", doc_blocks.g(BIAS_TARGET_DEG_S)]]
+    return table([f"day B ({', '.join(days)}), peak to peak", "x", "y", "z", "Table II"], rows, left=(0,))
+
+
+def reference_magnets_block(rec: dict) -> str:
+    t = rec["trials"]
+    rows = []
+    for k, label in MAGNET_LABELS.items():
+        if k not in t:
+            continue
+        m = t[k]["mag"]
+        rows.append([label, f"{fmt(m['plain']['rms_uT'])} -> {fmt(m['h_spline']['rms_uT'])}",
+                     " ".join(f"{v:.1f}" for v in m["h_spline"]["h_p2p_uT"])])
+    und = [t[k]["mag"] for k in DAY_B if k in t]
+    rows.append([f"undisturbed {DAY_B[0]}-{DAY_B[-1]}, for scale",
+                 f"{span([m['plain']['rms_uT'] for m in und], 2)} -> {span([m['h_spline']['rms_uT'] for m in und], 2)}",
+                 span([v for m in und for v in m["h_spline"]["h_p2p_uT"]], 1)])
+    return table(["trial", "reference magnetometer RMS, constant h -> h every 3 s (uT)",
+                  "h(t) peak to peak, x y z (uT)"], rows, left=(0, 1, 2))

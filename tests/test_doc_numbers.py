@@ -221,3 +221,13 @@ def test_the_trajectory_record_is_what_the_shipped_trial_gives_now():
     assert [now["median_deg"], now["p95_deg"], *now["rms_z_per_axis"]] == pytest.approx(
         [recorded["median_deg"], recorded["p95_deg"], *recorded["rms_z_per_axis"]], rel=1e-3), (
         "the record is stale: python benchmarks/trajectory_accuracy.py --out docs/numbers/trajectory-accuracy.json")
+
+
+def test_a_changed_reference_record_changes_sections_3_and_4():
+    record = blocks_module.read_record(real_data.REFERENCE_RECORD)
+    record["day_b"]["C_b_m_euler_deg"][2] += 1.0
+    record["trials"]["34"]["mag"]["plain"]["rms_uT"] += 1.0
+    page = records.PAGE.read_text(encoding="utf-8")
+    assert blocks_module.block_in_page(page, "ref-frames") != real_data.reference_frames_block(record)
+    assert blocks_module.block_in_page(page, "ref-magnets") != real_data.reference_magnets_block(record)
+    assert blocks_module.block_in_page(page, "ref-mag-moves") != real_data.reference_prose(record)["ref-mag-moves"]
