@@ -205,6 +205,7 @@ def misfit_broad(record: dict) -> str:
 
 def blocks() -> dict[str, str]:
     out = check_blocks()
+    out["ekf-lag-07"] = f"{read_record('broad-trials')['trials']['07']['lag_ms']:.1f} ms (docs/real-data.md section 1)"
     if (RECORDS / f"{REAL}.json").is_file():
         r = read_record(REAL)
         out.update({"ekf-real-table": real_table_block(r), "ekf-real-summary": real_summary_block(r),

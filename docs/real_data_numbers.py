@@ -204,7 +204,9 @@ def reference_prose(rec: dict) -> dict[str, str]:
     rests = np.array([t[k]["gyro"]["rest_bias_deg_s"] for k in d["trials"]])
     motion_x = [t[k]["gyro"]["bias_minus_rest_deg_s"][0] for k in d["trials"]]
     same_sign = all(v < 0 for v in motion_x) or all(v > 0 for v in motion_x)
-    return {"ref-bias-scatter": f"{ideal_bias_p2p.min():.2f}-{ideal_bias_p2p.max():.2f} deg/s",
+    fit_rms = [r["mag"]["plain"]["rms_uT"] for k, r in t.items() if k not in MAGNET_LABELS]
+    return {"ref-fit-rms": f"{span(fit_rms, 2)} uT",
+            "ref-bias-scatter": f"{ideal_bias_p2p.min():.2f}-{ideal_bias_p2p.max():.2f} deg/s",
             "ref-bias-trials": (", ".join(off[:-1]) + " and " + off[-1]) if len(off) > 1 else (off[0] if off else "none"),
             "ref-rest-repeat": (f"{np.ptp(rests, axis=0).max():.3f} deg/s over day B (z: "
                                 f"{', '.join(f'{v:.4f}' for v in rests[:, 2])})"),
