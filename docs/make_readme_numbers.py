@@ -212,7 +212,15 @@ def blocks(shipped=None) -> dict[str, str]:
             "held": held_block(session), "shipped-results": shipped_results_block(session, cal),
             "broad-ratios": f"calibrated dead reckoning is {records.ratio_span(record)} of the raw error",
             "field-change-broad": field_change_broad(record),
-            **phrases(), **table1.readme_blocks(), **readme_record_numbers.blocks()}
+            **phrases(), **table1.readme_blocks(), **readme_record_numbers.blocks(), **suite_time_block()}
+
+
+def suite_time_block() -> dict[str, str]:
+    """The suite's time (benchmarks/suite_time.py's record), once the README's "Tests" section has its markers."""
+    if "<!-- numbers:suite-time:start -->" not in PAGE.read_text(encoding="utf-8") or not readme_record_numbers.has(
+            "suite-time"):
+        return {}
+    return {"suite-time": readme_record_numbers.suite_time(doc_blocks.read_record("suite-time"))}
 
 
 def main(argv: list[str]) -> int:

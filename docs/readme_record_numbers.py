@@ -110,6 +110,15 @@ def recording_check_timing(record: dict) -> str:
             f"{100 * r['check_s'] / r['solve_s']:.1f} % of its solve; `{record['command']}`, {load_label(record)})")
 
 
+def suite_time(record: dict) -> str:
+    """benchmarks/suite_time.py's record: how long the tests took, where and under how much other load."""
+    c = record["counts"]
+    minutes, seconds = divmod(round(record["wall_s"]), 60)
+    tests = ", ".join(f"{n} {word}" for word, n in c.items())
+    return (f"`python -m pytest {' '.join(record['pytest_args'])}` ({tests}) took {minutes} min {seconds} s "
+            f"({load_label(record)}; `{record['command']}`)")
+
+
 def blocks() -> dict[str, str]:
     out = {"unit-ratios": unit_ratios(), "prefilter-bias": prefilter_bias()}
     mc = read_record(table1.RECORD)

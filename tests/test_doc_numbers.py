@@ -169,6 +169,13 @@ def test_a_changed_ekf_record_changes_its_tables():
         assert make(variants) != blocks_module.block_in_page(text, name), name
 
 
+def test_the_suite_time_script_reads_pytest_s_summary():
+    bench = load_script(DOCS.parent / "benchmarks" / "suite_time.py")
+    out = "....\n== 3 failed, 886 passed, 2 skipped in 586.1s (0:09:46) ==\n"
+    assert bench.counts(out) == {"failed": 3, "passed": 886, "skipped": 2}
+    assert bench.counts("no summary") == {}
+
+
 def test_inline_and_line_blocks_are_rewritten_in_their_form():
     start, end = blocks_module.marker("a", "start"), blocks_module.marker("a", "end")
     s2, e2 = blocks_module.marker("b", "start"), blocks_module.marker("b", "end")
