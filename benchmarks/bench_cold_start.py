@@ -209,7 +209,10 @@ def report(args, rounds: list, load_start, install_s: float) -> None:
               + (f": {', '.join(r['added'])}" if compiled else "") + ")")
 
     if args.out:
-        summary = {"repeat": args.repeat, "install_s": install_s, "results": rows, "other_load": load_line}
+        from machine_load import provenance
+
+        summary = {"repeat": args.repeat, "install_s": install_s, "results": rows, "other_load": load_line,
+                   **provenance(f"python benchmarks/bench_cold_start.py --repeat {args.repeat} --out FILE")}
         args.out.write_text(json.dumps(summary, indent=2) + "\n")
 
 

@@ -17,9 +17,15 @@ Samples = gyro samples + magnetometer samples fed to the filter. Median of
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
+import os
+import platform
 import statistics
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 from magyro import ekf
 from magyro.ekf.prior import initial_estimate
@@ -87,12 +93,24 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--out", help="also write the numbers here as JSON")
     args = parser.parse_args()
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from machine_load import busy_cpu_s, other_load_line, own_cpu_s
+
+    start = (time.perf_counter(), busy_cpu_s(), own_cpu_s())
     rows = [bench(p, args.repeat) for p in args.problems.split(",")]
+    load = other_load_line(start)
     print(f"magyro.ekf throughput, noise seed {SEED}, median of {args.repeat} runs\n")
     print(table(rows))
+    print(load)
     if args.out:
+        root = Path(__file__).resolve().parents[1]
+        done = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+        record = {"command": f"python benchmarks/bench_ekf.py --repeat {args.repeat} --out FILE",
+                  "date": datetime.date.today().isoformat(), "commit": done.stdout.strip() or "unknown",
+                  "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}",
+                  "other_load": load, "repeat": args.repeat, "rows": rows}
         with open(args.out, "w") as fh:
-            json.dump(rows, fh, indent=2)
+            json.dump(record, fh, indent=1)
 
 
 if __name__ == "__main__":

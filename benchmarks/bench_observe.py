@@ -116,6 +116,10 @@ def main() -> None:
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
 
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from machine_load import busy_cpu_s, other_load_line, own_cpu_s
+
+    start = (time.perf_counter(), busy_cpu_s(), own_cpu_s())
     session_obj, _ = simulate(load_problem(PROBLEM), SEED)
     results: dict = {"problem": PROBLEM, "samples": len(session_obj.t_gyro_s), "repeat": args.repeat}
     with tempfile.TemporaryDirectory() as tmp:
@@ -157,7 +161,18 @@ def main() -> None:
         for r in results["strides"]:
             print(f"| {r['stride']} | {r['nodes_per_s']:g} | {r['seconds']:.2f} | {r['first_call_seconds']:.2f} "
                   f"| {100 * r['max_change_vs_stride_1']:.2f} % |")
+    results["other_load"] = other_load_line(start)
+    print(results["other_load"])
     if args.out:
+        import datetime
+        import platform
+
+        root = Path(__file__).resolve().parents[1]
+        done = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+        flags = " --stride-study" * args.stride_study + " --cold" * args.cold
+        results.update(command=f"python benchmarks/bench_observe.py --repeat {args.repeat}{flags} --out FILE",
+                       date=datetime.date.today().isoformat(), commit=done.stdout.strip() or "unknown",
+                       machine=f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}")
         args.out.write_text(json.dumps(results, indent=2) + "\n")
 
 

@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 
 from bench_solve import PROBLEM, SEED, magyro_executable, problem_for_samples
-from machine_load import busy_cpu_s, other_load_line, own_cpu_s
+from machine_load import busy_cpu_s, other_load_line, own_cpu_s, provenance
 
 # The last measurement of the 360k session's solve (b02bd52: 1.3 GB; 3.1 GB when this benchmark was written).
 PRIOR_SIZE, PRIOR_RSS_MB = 360000, 1302.0
@@ -304,7 +304,9 @@ def main() -> None:
         args.out.write_text(json.dumps({"problem": PROBLEM, "repeat": args.repeat, "timeout_s": args.timeout,
                                         "ram_mb": ram_mb, "rss_limit_mb": rss_limit_mb, "warm_up": warm,
                                         "results": rows, "growth_360k_36k": growth,
-                                        "other_load": load_line}, indent=2) + "\n")
+                                        "other_load": load_line,
+                                        **provenance(f"python benchmarks/bench_scale.py --sizes {args.sizes} "
+                                                     f"--repeat {args.repeat} --out FILE")}, indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -646,7 +646,12 @@ def main() -> None:
     total_s = time.perf_counter() - start
     print(f"runtime {total_s:.1f} s for {len(results)} trial(s)")
     if args.out:
-        args.out.write_text(json.dumps({"trials": results, "day_b": summary, "paper_table_ii": PAPER_TABLE_II,
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from machine_load import provenance
+
+        flags = " --ideal-magnetometer" * args.ideal_magnetometer + " --include-rests" * args.include_rests
+        args.out.write_text(json.dumps({**provenance(f"python benchmarks/broad_reference.py{flags} --out FILE"),
+                                        "trials": results, "day_b": summary, "paper_table_ii": PAPER_TABLE_II,
                                         "runtime_s": total_s, "include_rests": args.include_rests,
                                         "credit": "BROAD (CC BY 4.0): Laidig, Caruso, Cereatti, Seel, Data 6(7):72, "
                                                   "2021"}, indent=1))

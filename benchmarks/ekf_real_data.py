@@ -15,7 +15,9 @@ calibration.
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
+import subprocess
 import time
 from pathlib import Path
 
@@ -62,6 +64,12 @@ def run(name: str, session, truth: bool) -> dict:
         row[f"{key}_bias_deg_s"] = cal.bias_deg_s.tolist()
         row[f"{key}_warnings"] = list(cal.warnings)
         row[f"{key}_misfit_1s"] = cal.solver.details.get("turning_misfit_ratio_1s")
+        row[f"{key}_misfit"] = cal.solver.details.get("turning_misfit_ratio")
+        if cal.std_white is not None:
+            ratio = [np.asarray(a) / np.asarray(b) for a, b in (
+                (cal.std.K_g, cal.std_white.K_g), (cal.std.bias_deg_s, cal.std_white.bias_deg_s),
+                (cal.std.misalignment_deg, cal.std_white.misalignment_deg))]
+            row[f"{key}_std_over_white"] = float(np.nanmedian(np.concatenate([r[np.isfinite(r)].ravel() for r in ratio])))
         if cal.rests is not None:
             row[f"{key}_rest_z"] = cal.solver.details.get("rest_bias_z")
         if truth:
@@ -107,7 +115,11 @@ def main() -> None:
         rows.append(run(path.stem, load_session(path), truth=False))
         print(table_row(rows[-1]), flush=True)
     if args.out:
-        args.out.write_text(json.dumps(rows, indent=1, default=float))
+        root = Path(__file__).resolve().parents[1]
+        done = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+        record = {"command": "python benchmarks/ekf_real_data.py --wild DIR --out FILE",
+                  "date": datetime.date.today().isoformat(), "commit": done.stdout.strip() or "unknown", "rows": rows}
+        args.out.write_text(json.dumps(record, indent=1, default=float) + "\n")
 
 
 if __name__ == "__main__":

@@ -32,3 +32,15 @@ def other_load_line(start: tuple[float, float, float]) -> str:
     other = max(0.0, (busy_cpu_s() - start[1]) - (own_cpu_s() - start[2]))
     return (f"other processes used {other:.0f} CPU-s during the benchmark's {wall:.0f} s "
             f"({100 * other / wall:.0f} % of one of {os.cpu_count()} CPUs; near 0 on a quiet machine)")
+
+
+def provenance(command: str) -> dict:
+    """Where and when a benchmark's record was measured: the command, the date, the commit and the machine."""
+    import datetime
+    import platform
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    return {"command": command, "date": datetime.date.today().isoformat(), "commit": done.stdout.strip() or "unknown",
+            "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}"}

@@ -127,7 +127,8 @@ def main() -> None:
     print(f"total {time.perf_counter() - started:.0f} s, median solve {np.median([r['seconds'] for r in runs]):.1f} s")
     if args.out:
         with open(args.out, "w", encoding="utf-8") as f:
-            json.dump({"problem": args.problem, "runs": n, "parameters": names, "predicted": predicted.tolist(),
+            json.dump({"problem": args.problem, "runs": n, "jobs": args.jobs, "band": BAND,
+                       "seconds": time.perf_counter() - started, "parameters": names, "predicted": predicted.tolist(),
                        "predicted_stride_1": predicted_1.tolist(), "actual": actual.tolist(),
                        "mean_reported_std": reported.tolist(), "ratio": ratio.tolist(), "prediction": info,
                        "estimates": estimates.tolist()}, f, indent=2)

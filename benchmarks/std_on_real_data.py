@@ -1,6 +1,7 @@
 """Does the std hold on real recordings? Issue 13's targets on BROAD, with the std and with the white std beside it.
 
     python benchmarks/std_on_real_data.py [--broad ../shared/data/broad] [--trials 02,03,05,07,09,21]
+                                          [--out docs/numbers/std-on-real-data.json]
 
 Per trial (cut to its movement span +/- 10 s, solved with the defaults): the field
 disturbance the solve measured, std / white std, and the split-half RMS z computed with
@@ -16,6 +17,9 @@ for Robust Inertial Orientation Estimation", Data 6(7):72, 2021.
 from __future__ import annotations
 
 import argparse
+import datetime
+import json
+import subprocess
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -83,9 +87,13 @@ def main() -> None:
     parser.add_argument("--broad", type=Path, default=Path(__file__).resolve().parents[1].parent / "shared/data/broad")
     parser.add_argument("--trials", default="02,03,05,07,09,21")
     parser.add_argument("--distorted", default="02,03,07")
+    parser.add_argument("--out", type=Path, help="write the numbers as JSON (the record docs/real-data.md renders)")
     args = parser.parse_args()
     t0 = time.perf_counter()
     sessions, cals = {}, {}
+    record = {"command": "python benchmarks/std_on_real_data.py --out docs/numbers/std-on-real-data.json",
+              "date": datetime.date.today().isoformat(), "commit": commit(), "trials": {}, "day_b_chi_square": None,
+              "distortions": {}}
     print("| trial | field disturbance (% of field, s) | std / white std (median) | split RMS z, std | split RMS z, white std |")
     print("|---|---|---|---|---|")
     for trial in args.trials.split(","):
@@ -95,6 +103,9 @@ def main() -> None:
         d = cal.noise.field_disturbance
         ratio = float(np.median(gyro_stds(cal.std) / gyro_stds(cal.std_white)))
         z_new, z_white = split_rms_z(sessions[trial], cal)
+        record["trials"][trial] = {"disturbance_percent": 100 * d.std_fraction,
+                                   "correlation_time_s": d.correlation_time_s, "std_over_white_median": ratio,
+                                   "split_rms_z": z_new, "split_rms_z_white": z_white}
         print(f"| {trial} | {100 * d.std_fraction:.2f}, {d.correlation_time_s:.1f} | {ratio:.2f} | {z_new:.2f} | {z_white:.2f} |",
               flush=True)
     if all(t in cals for t in DAY_B):
@@ -103,6 +114,7 @@ def main() -> None:
         print("| group | with std | with white std |")
         print("|---|---|---|")
         new, white = day_b_chi_square(cals, "std"), day_b_chi_square(cals, "std_white")
+        record["day_b_chi_square"] = {"limit_95": float(limit), "std": new, "std_white": white}
         for name in GROUPS:
             print(f"| {name} | {new[name]:.1f}{' (exceeds)' if new[name] > limit else ''} | {white[name]:.1f} |")
     print("\nknown distortions: largest |distorted - predicted| per group, in std (with std / with white std)")
@@ -115,8 +127,19 @@ def main() -> None:
             cals[trial] = calibrate(sessions[trial], Options())
         cal_d = calibrate(distorted(sessions[trial]), Options())
         new, white = distortion_worst(cals[trial], cal_d, "std"), distortion_worst(cals[trial], cal_d, "std_white")
+        record["distortions"][trial] = {"std": new, "std_white": white}
         print(f"| {trial} | " + " | ".join(f"{new[k]:.2f} / {white[k]:.2f}" for k in new) + " |", flush=True)
-    print(f"\n({time.perf_counter() - t0:.0f} s)")
+    record["seconds"] = time.perf_counter() - t0
+    print(f"\n({record['seconds']:.0f} s)")
+    if args.out:
+        args.out.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        print(f"wrote {args.out}")
+
+
+def commit() -> str:
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    return done.stdout.strip() or "unknown"
 
 
 if __name__ == "__main__":

@@ -72,10 +72,21 @@ def read_record(name: str) -> dict:
     return json.loads((RECORDS / f"{name}.json").read_text(encoding="utf-8"))
 
 
-def write_record(name: str, record: dict) -> Path:
+def commit() -> str:
+    """The short commit of the working tree a record is measured on."""
+    import subprocess
+
+    done = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    return done.stdout.strip() or "unknown"
+
+
+def write_record(name: str, record: dict, compact: bool = False) -> Path:
+    """docs/numbers/NAME.json; `compact`: one line (a record of many runs)."""
     RECORDS.mkdir(exist_ok=True)
     path = RECORDS / f"{name}.json"
-    path.write_text(json.dumps(record, indent=1, sort_keys=True, default=float) + "\n", encoding="utf-8")
+    text = (json.dumps(record, sort_keys=True, separators=(",", ":"), default=float) if compact
+            else json.dumps(record, indent=1, sort_keys=True, default=float))
+    path.write_text(text + "\n", encoding="utf-8")
     return path
 
 

@@ -28,6 +28,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import doc_blocks  # noqa: E402
 from doc_blocks import ROOT, fixed, fmt, g, span  # noqa: E402
 import make_record_numbers as records  # noqa: E402
+import make_table1_numbers as table1  # noqa: E402
+import readme_record_numbers  # noqa: E402
 from recording_check_numbers import shipped_calibration  # noqa: E402
 
 PAGE = ROOT / "README.md"
@@ -154,6 +156,7 @@ def phrases() -> dict[str, str]:
     from magyro.options import StdBounds
     from magyro.result import check
     from magyro.result.consistency import MAX_HALF_Z, MAX_RMS_Z
+    from magyro.result.reported import MISALIGNMENT_WARNING_DEG
     from magyro.session import HOLE_FACTOR
 
     b, small, large = StdBounds(), min(STRIDES), max(STRIDES)
@@ -184,7 +187,19 @@ def phrases() -> dict[str, str]:
         "misfit-1s": f"above {g(check.MAX_LONG_TURNING_MISFIT)}x. A bias more than {g(check.MAX_REST_Z)} std",
         "field-change": f"changes by more than {100 * MAX_FIELD_CHANGE:g} % within half a second",
         "suspect": f"exceed {g(SUSPECT_FACTOR)} times the typical",
+        "mirror-warn": f"{g(MISALIGNMENT_WARNING_DEG)} deg",
     }
+
+
+def field_change_broad(record: dict) -> str:
+    """What BROAD's trial with a magnet beside the path and its undisturbed trials get (the trials' record)."""
+    trial30 = record["trials"]["30"]
+    undisturbed = [t for t in records.UNDISTURBED if record["trials"][t].get("warnings")]
+    field = [w for w in trial30.get("warnings", []) if "field magnitude" in w]
+    found = ", ".join(f"`{k}`" for k in trial30.get("findings", []))
+    return (f"on BROAD trial 30 the recording check {'cuts the magnet first (' + found + ')' if found else 'finds nothing'}"
+            f"{' and this warning is still given' if field else ', so this warning is not left'}; "
+            f"{'no undisturbed trial warns' if not undisturbed else 'undisturbed trials ' + ', '.join(undisturbed) + ' warn'}")
 
 
 def blocks(shipped=None) -> dict[str, str]:
@@ -196,7 +211,16 @@ def blocks(shipped=None) -> dict[str, str]:
             "worked-example": worked_example_block(session, cal), "trajectory-nodes": trajectory_nodes_block(cal),
             "held": held_block(session), "shipped-results": shipped_results_block(session, cal),
             "broad-ratios": f"calibrated dead reckoning is {records.ratio_span(record)} of the raw error",
-            **phrases()}
+            "field-change-broad": field_change_broad(record),
+            **phrases(), **table1.readme_blocks(), **readme_record_numbers.blocks(), **suite_time_block()}
+
+
+def suite_time_block() -> dict[str, str]:
+    """The suite's time (benchmarks/suite_time.py's record), once the README's "Tests" section has its markers."""
+    if "<!-- numbers:suite-time:start -->" not in PAGE.read_text(encoding="utf-8") or not readme_record_numbers.has(
+            "suite-time"):
+        return {}
+    return {"suite-time": readme_record_numbers.suite_time(doc_blocks.read_record("suite-time"))}
 
 
 def main(argv: list[str]) -> int:

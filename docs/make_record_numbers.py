@@ -116,10 +116,31 @@ def ratio_span(record: dict) -> str:
     return doc_blocks.span(ratios(record), digits=2)
 
 
+def bias_target(record: dict) -> str:
+    """Which undisturbed trials have their bias within the target of the rest mean, and how far the others are."""
+    worst = {t: max(abs(v) for v in record["trials"][t]["estimate_minus_rest_deg_s"]) for t in UNDISTURBED
+             if "error" not in record["trials"][t]}
+    met = [t for t, v in worst.items() if v <= BIAS_TARGET_DEG_S]
+    missed = [f"{t} ({v:.3f})" for t, v in worst.items() if v > BIAS_TARGET_DEG_S]
+    return f"met on {', '.join(met) or 'none'}" + (f"; not on {', '.join(missed)}" if missed else "")
+
+
+def day_b_excess(record: dict) -> str:
+    ptp = record["day_b_peak_to_peak"]
+    return (f"scale {min(ptp['scale_ppm']):.0f}-{max(ptp['scale_ppm']):.0f} ppm, non-orthogonality up to "
+            f"{max(ptp['non_orthogonality_deg']):.2f} deg")
+
+
 def blocks(record: dict | None = None) -> dict[str, str]:
+    """The page's blocks: the trials' (this module) and sections 2 and 4's (docs/real_data_numbers.py)."""
+    import real_data_numbers
+
     record = record or read_record(RECORD)
-    return {"trials": trials_block(record), "day-b": day_b_block(record),
-            "dead-reckoning-target": f"met, ratios {ratio_span(record)}"}
+    from magyro.nls.grid import MAX_SEGMENT_FACTOR
+
+    return {"trials": trials_block(record), "day-b": day_b_block(record), "bias-target": bias_target(record),
+            "day-b-excess": day_b_excess(record), "gap-factor": doc_blocks.g(MAX_SEGMENT_FACTOR),
+            "dead-reckoning-target": f"met, ratios {ratio_span(record)}", **real_data_numbers.blocks(record)}
 
 
 def main(argv: list[str]) -> int:

@@ -19,6 +19,11 @@ blocks_module = load_script(DOCS / "doc_blocks.py")
 readme = load_script(DOCS / "make_readme_numbers.py")
 spec = load_script(DOCS / "make_spec_numbers.py")
 records = load_script(DOCS / "make_record_numbers.py")
+table1 = load_script(DOCS / "make_table1_numbers.py")
+observability = load_script(DOCS / "make_observability_table.py")
+ekf_page = load_script(DOCS / "make_ekf_numbers.py")
+real_data = load_script(DOCS / "real_data_numbers.py")
+readme_records = load_script(DOCS / "readme_record_numbers.py")
 BROAD = DOCS.parent.parent / "shared" / "data" / "broad"
 
 
@@ -74,6 +79,103 @@ def test_a_changed_record_changes_the_table():
     assert stale_blocks(records.PAGE, records.blocks(record)) == ["trials"]
 
 
+def test_table1_is_rendered_from_its_record():
+    """docs/table1.md: every table and figure is what magyro.studies.montecarlo_table makes of the record's runs."""
+    made = table1.blocks()
+    assert not stale_blocks(table1.PAGE, made), f"docs/table1.md is stale: regenerate it with `{table1.COMMAND}`"
+    names = blocks_module.block_names_in_page(table1.PAGE.read_text(encoding="utf-8"))
+    assert sorted(names) == sorted(made)
+
+
+def test_the_table_is_recomputed_from_the_runs_not_copied():
+    """The rows come from the runs' estimates: they are the ones `magyro montecarlo` wrote beside them."""
+    record = blocks_module.read_record(table1.RECORD)
+    for method, m in table1.result(record).methods.items():
+        written = {p["name"]: p for p in record["methods"][method]["parameters"]}
+        for row in m.rows:
+            assert row.std == pytest.approx(written[row.name]["std"], rel=1e-12)
+            assert row.mean == pytest.approx(written[row.name]["mean"], rel=1e-12)
+
+
+def test_a_changed_monte_carlo_record_changes_table1_and_the_readme():
+    record = blocks_module.read_record(table1.RECORD)
+    run = next(r for r in record["methods"]["nls"]["runs"] if r["ok"])
+    run["estimate"]["K_g[2,2]"] += 0.01          # one run far off: K_g[2,2]'s spread grows tenfold
+    assert {"beside-paper", "full-table", "targets", "ekf"} <= set(stale_blocks(table1.PAGE, table1.blocks(record)))
+    assert stale_blocks(readme.PAGE, table1.readme_blocks(record)) == ["table1-summary"]
+
+
+def test_observability_constants_and_records_are_the_codes(monkeypatch):
+    made = observability.cheap_blocks()
+    assert not stale_blocks(observability.PAGE, made), (
+        f"docs/observability.md is stale: regenerate it with `{observability.COMMAND}`")
+    from magyro.observability import gate
+
+    monkeypatch.setattr(gate, "WELL_CONDITIONED", 50.0)
+    assert stale_blocks(observability.PAGE, observability.cheap_blocks()) == ["well-conditioned"]
+
+
+def test_observability_has_no_block_without_a_generator():
+    """Its blocks are the cheap ones (checked here) and those made from observe's reports (tests/test_observe.py)."""
+    names = blocks_module.block_names_in_page(observability.PAGE.read_text(encoding="utf-8"))
+    assert sorted(names) == sorted([*observability.cheap_blocks(), *observability.REPORT_BLOCKS])
+
+
+def test_real_data_has_no_block_without_a_generator():
+    names = blocks_module.block_names_in_page(records.PAGE.read_text(encoding="utf-8"))
+    assert sorted(names) == sorted(records.blocks())
+
+
+def test_a_changed_std_record_changes_real_data_and_the_readme():
+    """Sections 2's tables and the README's room figures come from benchmarks/std_on_real_data.py's record."""
+    record = blocks_module.read_record(real_data.STD_RECORD)
+    record["trials"]["21"]["split_rms_z"] += 1.0
+    page = records.PAGE.read_text(encoding="utf-8")
+    assert blocks_module.block_in_page(page, "std-table") != real_data.std_table_block(record)
+    readme_text = readme.PAGE.read_text(encoding="utf-8")
+    assert blocks_module.block_in_page(readme_text, "split-broad") != readme_records.room(record)["split-broad"]
+
+
+def test_a_changed_magnets_record_changes_section_4():
+    record = blocks_module.read_record(real_data.MAGNETS_RECORD)
+    solved = next(r for r in record["rows"] if "refused" not in r)
+    solved["scale_minus_undisturbed_ppm"][0] += 1000.0
+    page = records.PAGE.read_text(encoding="utf-8")
+    assert blocks_module.block_in_page(page, "magnets-table") != real_data.magnets_table_block(record)
+    assert blocks_module.block_in_page(page, "magnets-summary") != real_data.magnets_summary_block(record)
+
+
+def test_ekf_page_is_rendered_from_its_records():
+    made = ekf_page.blocks()
+    assert not stale_blocks(ekf_page.PAGE, made), f"docs/ekf.md is stale: regenerate it with `{ekf_page.COMMAND}`"
+    names = blocks_module.block_names_in_page(ekf_page.PAGE.read_text(encoding="utf-8"))
+    assert sorted(names) == sorted(made)
+
+
+def test_a_changed_ekf_record_changes_its_tables():
+    real = blocks_module.read_record(ekf_page.REAL)
+    both = next(r for r in real["rows"] if "max_abs_z" in r)
+    both["max_abs_z"] += 10.0
+    assert ekf_page.real_table_block(real) != blocks_module.block_in_page(ekf_page.PAGE.read_text(), "ekf-real-table")
+    assert ekf_page.real_summary_block(real) != blocks_module.block_in_page(ekf_page.PAGE.read_text(),
+                                                                            "ekf-real-summary")
+    variants = blocks_module.read_record(ekf_page.VARIANTS)
+    seed = next(iter(variants["variants"]["default"].values()))
+    seed["scale_ppm"][0] += 5000.0           # K11 off by 0.005 more on one seed
+    seed["K_g_upper"][0] += 0.005
+    text = ekf_page.PAGE.read_text(encoding="utf-8")
+    for name, make in (("ekf-variants", ekf_page.variants_block), ("ekf-default", ekf_page.default_block),
+                       ("ekf-consider", ekf_page.consider_block)):
+        assert make(variants) != blocks_module.block_in_page(text, name), name
+
+
+def test_the_suite_time_script_reads_pytest_s_summary():
+    bench = load_script(DOCS.parent / "benchmarks" / "suite_time.py")
+    out = "....\n== 3 failed, 886 passed, 2 skipped in 586.1s (0:09:46) ==\n"
+    assert bench.counts(out) == {"failed": 3, "passed": 886, "skipped": 2}
+    assert bench.counts("no summary") == {}
+
+
 def test_inline_and_line_blocks_are_rewritten_in_their_form():
     start, end = blocks_module.marker("a", "start"), blocks_module.marker("a", "end")
     s2, e2 = blocks_module.marker("b", "start"), blocks_module.marker("b", "end")
@@ -98,3 +200,42 @@ def test_the_record_is_what_trial_02_gives_now():
         "the BROAD record is stale: python benchmarks/broad_trials.py --out FILE, then "
         f"{records.COMMAND} --record FILE")
     json.dumps(now)   # the record stays JSON
+
+
+@pytest.mark.broad
+@pytest.mark.slow
+def test_the_std_record_is_what_trial_02_gives_now():
+    """Provenance: benchmarks/std_on_real_data.py's row of trial 02, measured now, is the record's."""
+    if not BROAD.is_dir():
+        pytest.skip(f"no BROAD data at {BROAD}")
+    bench = load_script(DOCS.parent / "benchmarks" / "std_on_real_data.py")
+    import magyro
+
+    session = bench.import_broad_movement(sorted(BROAD.glob("02_*.mat"))[0], bench.MARGIN_S)
+    cal = magyro.calibrate(session, magyro.Options())
+    recorded = blocks_module.read_record(real_data.STD_RECORD)["trials"]["02"]
+    assert 100 * cal.noise.field_disturbance.std_fraction == pytest.approx(recorded["disturbance_percent"], rel=1e-3)
+    assert bench.split_rms_z(session, cal) == pytest.approx(
+        (recorded["split_rms_z"], recorded["split_rms_z_white"]), rel=1e-3), (
+        "the record is stale: python benchmarks/std_on_real_data.py --out docs/numbers/std-on-real-data.json")
+
+
+@pytest.mark.slow
+def test_the_trajectory_record_is_what_the_shipped_trial_gives_now():
+    """Provenance: benchmarks/trajectory_accuracy.py on the shipped BROAD trial 02, measured now, is the record's."""
+    bench = load_script(DOCS.parent / "benchmarks" / "trajectory_accuracy.py")
+    recorded = blocks_module.read_record("trajectory-accuracy")["broad_02"]
+    now = bench.broad02()
+    assert [now["median_deg"], now["p95_deg"], *now["rms_z_per_axis"]] == pytest.approx(
+        [recorded["median_deg"], recorded["p95_deg"], *recorded["rms_z_per_axis"]], rel=1e-3), (
+        "the record is stale: python benchmarks/trajectory_accuracy.py --out docs/numbers/trajectory-accuracy.json")
+
+
+def test_a_changed_reference_record_changes_sections_3_and_4():
+    record = blocks_module.read_record(real_data.REFERENCE_RECORD)
+    record["day_b"]["C_b_m_euler_deg"][2] += 1.0
+    record["trials"]["34"]["mag"]["plain"]["rms_uT"] += 1.0
+    page = records.PAGE.read_text(encoding="utf-8")
+    assert blocks_module.block_in_page(page, "ref-frames") != real_data.reference_frames_block(record)
+    assert blocks_module.block_in_page(page, "ref-magnets") != real_data.reference_magnets_block(record)
+    assert blocks_module.block_in_page(page, "ref-mag-moves") != real_data.reference_prose(record)["ref-mag-moves"]
