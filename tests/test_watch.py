@@ -194,9 +194,9 @@ def test_enough_agrees_with_observe_on_the_saved_session(staged, tmp_path):
     and within 5 % of it on the session up to the moment a live watch would show it."""
     from magyro.observability.report import accuracy_rows
 
-    predictor = Predictor("inline", refresh_s=4.0)
+    predictor = Predictor("inline", refresh_s=8.0)
     mon = ExcitationMonitor(predictor=predictor)
-    with mock.patch("magyro.live.prediction.COST_FACTOR", 0.0):   # predictions every 4 s of data, whatever the load
+    with mock.patch("magyro.live.prediction.COST_FACTOR", 0.0):   # predictions every 8 s of data, whatever the load
         statuses = feed(mon, staged, stop=lambda s: s.enough)
     enough = statuses[-1]
     assert enough.enough and enough.enough_at_s == enough.prediction.t_s
