@@ -134,13 +134,15 @@ def day_b_excess(record: dict) -> str:
 def blocks(record: dict | None = None) -> dict[str, str]:
     """The page's blocks: the trials' (this module) and sections 2 and 4's (docs/real_data_numbers.py)."""
     import real_data_numbers
+    import shipped_data_numbers
 
     record = record or read_record(RECORD)
     from magyro.nls.grid import MAX_SEGMENT_FACTOR
 
     return {"trials": trials_block(record), "day-b": day_b_block(record), "bias-target": bias_target(record),
             "day-b-excess": day_b_excess(record), "gap-factor": doc_blocks.g(MAX_SEGMENT_FACTOR),
-            "dead-reckoning-target": f"met, ratios {ratio_span(record)}", **real_data_numbers.blocks(record)}
+            "dead-reckoning-target": f"met, ratios {ratio_span(record)}", **real_data_numbers.blocks(record),
+            "rest-drift": shipped_data_numbers.rest_drift_block()}
 
 
 def main(argv: list[str]) -> int:

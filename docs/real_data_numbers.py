@@ -155,7 +155,7 @@ def blocks(trials: dict) -> dict[str, str]:
     if (RECORDS / f"{REFERENCE_RECORD}.json").is_file():
         r = read_record(REFERENCE_RECORD)
         out.update({"ref-frames": reference_frames_block(r), "ref-ideal": ideal_block(r),
-                    "ref-magnets": reference_magnets_block(r), **reference_prose(r)})
+                    "ref-magnets": reference_magnets_block(r), **reference_prose(r), **fast_slow_blocks(r)})
     if (RECORDS / "trajectory-accuracy.json").is_file():
         t = read_record("trajectory-accuracy")
         z = [f"{v:.1f}" for v in t["broad_02"]["rms_z_per_axis"]]
@@ -218,6 +218,27 @@ def reference_prose(rec: dict) -> dict[str, str]:
             "ref-gradient": f"{min(grad):.0f}-{max(grad):.0f} %",
             "ref-magnet-scales": f"{min(magnets):+.0f} to {max(magnets):+.0f} ppm",
             "ref-undisturbed-scales": f"{min(undisturbed):+.0f} to {max(undisturbed):+.0f} ppm"}
+
+
+SLOW, FAST = ("02", "05"), ("07", "09")   # day B's slow and fast trials
+
+
+def fast_slow_blocks(rec: dict) -> dict[str, str]:
+    """Each slow trial's scale factor (mean over the three axes) minus each fast trial's: the windowed optical
+    reference's (`gyro`) and magyro's with the ideal magnetometer (`ideal`); and the ideal one's spread over day B
+    (peak to peak per axis, the largest)."""
+    t = rec["trials"]
+
+    def pairs(key):
+        mean = {k: float(np.mean(t[k][key]["scale_ppm"])) for k in (*SLOW, *FAST)}
+        return [mean[s] - mean[f] for s in SLOW for f in FAST]
+
+    days = [k for k in DAY_B if "ideal" in t.get(k, {})]
+    spread = np.ptp(np.array([t[k]["ideal"]["scale_ppm"] for k in days]), axis=0).max()
+    return {"ref-fast-slow": (f"the windowed reference by {span(pairs('gyro'), 0)} ppm, magyro with the ideal "
+                              f"magnetometer by {span(pairs('ideal'), 0)} ppm (mean over the three axes, each slow "
+                              "trial against each fast one)"),
+            "ref-ideal-spread": f"{spread:.0f} ppm"}
 
 
 def ideal_block(rec: dict) -> str:
