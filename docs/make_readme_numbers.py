@@ -30,6 +30,7 @@ from doc_blocks import ROOT, fixed, fmt, g, span  # noqa: E402
 import make_record_numbers as records  # noqa: E402
 import make_table1_numbers as table1  # noqa: E402
 import readme_record_numbers  # noqa: E402
+import shipped_data_numbers as shipped_data  # noqa: E402
 from recording_check_numbers import shipped_calibration  # noqa: E402
 
 PAGE = ROOT / "README.md"
@@ -202,6 +203,13 @@ def field_change_broad(record: dict) -> str:
             f"{'no undisturbed trial warns' if not undisturbed else 'undisturbed trials ' + ', '.join(undisturbed) + ' warn'}")
 
 
+def anomaly_30(record: dict) -> str:
+    """BROAD trial 30 (a magnet beside the path): what the recording check found there (the trials' record)."""
+    found = record["trials"]["30"].get("findings", [])
+    return (f"BROAD trial 30, {'where the check finds ' + ', '.join(f'`{k}`' for k in found) if found else 'where the check finds nothing'}"
+            f" (docs/numbers/{records.RECORD}.json)")
+
+
 def blocks(shipped=None) -> dict[str, str]:
     """Every numbers block of the README, as the tool makes it now; `shipped`: (session, Calibration) of
     data/broad-02.parquet when already solved."""
@@ -211,7 +219,10 @@ def blocks(shipped=None) -> dict[str, str]:
             "worked-example": worked_example_block(session, cal), "trajectory-nodes": trajectory_nodes_block(cal),
             "held": held_block(session), "shipped-results": shipped_results_block(session, cal),
             "broad-ratios": f"calibrated dead reckoning is {records.ratio_span(record)} of the raw error",
-            "field-change-broad": field_change_broad(record),
+            "field-change-broad": field_change_broad(record), "anomaly-30": anomaly_30(record),
+            "serial-drift": shipped_data.serial_drift_block(),
+            "mag-autocorrelation": shipped_data.mag_autocorrelation_block(),
+            "third-difference": shipped_data.third_difference_block(),
             **phrases(), **table1.readme_blocks(), **readme_record_numbers.blocks(), **suite_time_block()}
 
 

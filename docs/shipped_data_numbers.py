@@ -85,3 +85,24 @@ def serial_drift_block() -> str:
     p = inspect.signature(degrade_module().drifting_burst_stamps).parameters
     return (f"wandering by {g(1e3 * p['wander_s'].default)} ms, {p['ppm'].default:+g} ppm, as "
             "tests/test_recording_causes.py simulates it")
+
+
+HAND_HZ, HAND_AMPLITUDE, NOISE_STD, RATES_HZ = (0.5, 0.8, 1.0), 5.0, 0.001, (25.0, 40.0)
+
+
+def third_difference_block() -> str:
+    """A simulated hand (the three axes turning at 0.5, 0.8 and 1 Hz, as in tests/test_noise_without_rests.py)
+    with white noise, sampled at 25 and 40 Hz: what the third differences and the differences' floor read,
+    in units of the noise's std."""
+    from magyro.front.differences import noise_floor_std, white_noise_std
+
+    third, floor = [], []
+    for rate in RATES_HZ:
+        t = np.arange(0, 60, 1 / rate)
+        hand = np.column_stack([HAND_AMPLITUDE * np.sin(2 * np.pi * f * t) for f in HAND_HZ])
+        x = hand + NOISE_STD * np.random.default_rng(0).standard_normal(hand.shape)
+        third.extend(white_noise_std(x) / NOISE_STD)
+        floor.extend(noise_floor_std(x)[0] / NOISE_STD)
+    return (f"on a simulated hand turning at {g(min(HAND_HZ))}-{g(max(HAND_HZ))} Hz sampled at "
+            f"{g(RATES_HZ[0])}-{g(RATES_HZ[1])} Hz the third differences read up to {max(third):.0f}x the noise, the "
+            f"floor {min(floor):.2f}-{max(floor):.2f}x")
