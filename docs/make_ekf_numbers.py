@@ -203,9 +203,22 @@ def misfit_broad(record: dict) -> str:
             f"ones ({record['date']})")
 
 
+LAG = "ekf-lag-shipped"   # benchmarks/ekf_lag_shipped.py --out
+
+
+def lag_shipped_block(record: dict) -> str:
+    return (f"{record['ekf_lag_ms']:.1f} ms on trial 07 (the shipped data/{record['trial']}; `{record['command']}`, "
+            f"{record['date']})")
+
+
 def blocks() -> dict[str, str]:
     out = check_blocks()
     out["ekf-lag-07"] = f"{read_record('broad-trials')['trials']['07']['lag_ms']:.1f} ms (docs/real-data.md section 1)"
+    import shipped_data_numbers
+
+    out["ekf-mag-levels"] = shipped_data_numbers.ekf_mag_levels_block()
+    if (RECORDS / f"{LAG}.json").is_file():
+        out["ekf-lag-shipped"] = lag_shipped_block(read_record(LAG))
     if (RECORDS / f"{REAL}.json").is_file():
         r = read_record(REAL)
         out.update({"ekf-real-table": real_table_block(r), "ekf-real-summary": real_summary_block(r),
