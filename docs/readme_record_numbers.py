@@ -119,6 +119,13 @@ def suite_time(record: dict) -> str:
             f"({load_label(record)}; `{record['command']}`)")
 
 
+def stride_agreement(record: dict) -> str:
+    """benchmarks/stride_agreement.py's record: each case solved at two strides, the largest difference in std."""
+    parts = [f"{r['case'].split(' (')[0]} at strides {r['strides'][0]} and {r['strides'][1]} agree to "
+             f"{r['max_abs_z']:.3f} std" for r in record["rows"]]
+    return f"{'; '.join(parts)}: `{record['command']}`, {record['date']}"
+
+
 def blocks() -> dict[str, str]:
     out = {"unit-ratios": unit_ratios(), "prefilter-bias": prefilter_bias()}
     mc = read_record(table1.RECORD)
@@ -135,6 +142,8 @@ def blocks() -> dict[str, str]:
         import make_ekf_numbers
 
         out["misfit-broad"] = make_ekf_numbers.misfit_broad(read_record("ekf-real-data"))
+    if has("stride-agreement"):
+        out["stride-agreement"] = stride_agreement(read_record("stride-agreement"))
     if has("trajectory-accuracy"):
         out["trajectory-accuracy"] = trajectory(read_record("trajectory-accuracy"))
     return out
