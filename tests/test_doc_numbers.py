@@ -239,3 +239,85 @@ def test_a_changed_reference_record_changes_sections_3_and_4():
     assert blocks_module.block_in_page(page, "ref-frames") != real_data.reference_frames_block(record)
     assert blocks_module.block_in_page(page, "ref-magnets") != real_data.reference_magnets_block(record)
     assert blocks_module.block_in_page(page, "ref-mag-moves") != real_data.reference_prose(record)["ref-mag-moves"]
+
+
+shipped_data = load_script(DOCS / "shipped_data_numbers.py")
+
+
+def test_a_changed_stride_record_changes_the_readme():
+    record = blocks_module.read_record("stride-agreement")
+    record["rows"][0]["max_abs_z"] += 0.5
+    text = readme.PAGE.read_text(encoding="utf-8")
+    assert blocks_module.block_in_page(text, "stride-agreement") != readme_records.stride_agreement(record)
+
+
+def test_a_changed_ekf_lag_record_changes_the_ekf_page():
+    record = blocks_module.read_record(ekf_page.LAG)
+    record["ekf_lag_ms"] += 1.0
+    text = ekf_page.PAGE.read_text(encoding="utf-8")
+    assert blocks_module.block_in_page(text, "ekf-lag-shipped") != ekf_page.lag_shipped_block(record)
+
+
+def test_a_changed_reference_record_changes_the_fast_slow_scales():
+    record = blocks_module.read_record(real_data.REFERENCE_RECORD)
+    record["trials"]["07"]["ideal"]["scale_ppm"][0] -= 3000.0
+    page = records.PAGE.read_text(encoding="utf-8")
+    made = real_data.fast_slow_blocks(record)
+    for name in ("ref-fast-slow", "ref-ideal-spread"):
+        assert blocks_module.block_in_page(page, name) != made[name], name
+
+
+def test_a_changed_trial_30_record_changes_the_readme():
+    record = blocks_module.read_record(records.RECORD)
+    record["trials"]["30"]["findings"] = []
+    assert "finds nothing" in readme.anomaly_30(record)
+    assert blocks_module.block_in_page(readme.PAGE.read_text(encoding="utf-8"), "anomaly-30") != readme.anomaly_30(record)
+
+
+def test_the_shipped_data_figures_are_computed_cheaply_and_follow_their_sources(monkeypatch):
+    """The autocorrelations, magnetometer levels, rest drift and simulated-hand figures come from the shipped
+    trials and the code (no solve); the drifting logger's from tests/degrade.py's defaults."""
+    import time
+
+    t0 = time.perf_counter()
+    made = {"mag-autocorrelation": shipped_data.mag_autocorrelation_block(),
+            "third-difference": shipped_data.third_difference_block(),
+            "rest-drift": shipped_data.rest_drift_block(), "ekf-mag-levels": shipped_data.ekf_mag_levels_block()}
+    assert time.perf_counter() - t0 < 5.0       # loads two trials and finds their rests: no solve
+    pages = {"mag-autocorrelation": readme.PAGE, "third-difference": readme.PAGE, "rest-drift": records.PAGE,
+             "ekf-mag-levels": ekf_page.PAGE}
+    for name, body in made.items():
+        assert blocks_module.block_in_page(pages[name].read_text(encoding="utf-8"), name) == body, name
+    monkeypatch.setattr(shipped_data, "NOISE_STD", 0.01)          # ten times the noise: the motion shows less
+    assert shipped_data.third_difference_block() != made["third-difference"]
+    degrade = shipped_data.degrade_module()
+    import inspect
+
+    assert f"{inspect.signature(degrade.drifting_burst_stamps).parameters['ppm'].default:+g} ppm" in (
+        shipped_data.serial_drift_block())
+
+
+@pytest.mark.slow
+def test_the_ekf_lag_record_is_what_the_shipped_trial_gives_now():
+    """Provenance: benchmarks/ekf_lag_shipped.py on the shipped trial 07, measured now, is the record's (seconds)."""
+    bench = load_script(DOCS.parent / "benchmarks" / "ekf_lag_shipped.py")
+    recorded = blocks_module.read_record(ekf_page.LAG)["ekf_lag_ms"]
+    assert bench.ekf_lag_ms() == pytest.approx(recorded, abs=0.05), (
+        "the record is stale: python benchmarks/ekf_lag_shipped.py --out docs/numbers/ekf-lag-shipped.json")
+
+
+@pytest.mark.broad
+@pytest.mark.slow
+def test_trial_30_s_field_anomaly_is_what_the_check_finds_now():
+    """Provenance of the README's trial-30 example: the recording check on BROAD trial 30, now, finds the
+    record's `field_anomaly`."""
+    if not BROAD.is_dir():
+        pytest.skip(f"no BROAD data at {BROAD}")
+    from magyro.front.repairs import repair_recording
+    from magyro.io import import_broad_movement
+
+    bench = load_script(DOCS.parent / "benchmarks" / "broad_trials.py")
+    session = import_broad_movement(bench.trial_path(BROAD, "30"), bench.MARGIN_S)
+    kinds = {f.kind for f in repair_recording(session)[1].findings}
+    recorded = blocks_module.read_record(records.RECORD)["trials"]["30"]["findings"]
+    assert set(recorded) <= kinds
