@@ -29,7 +29,7 @@ from magyro.errors import InputError, ObservabilityError
 from magyro.result.reported import mirror_is_credible, qr_split
 from magyro.session import HOLE_FACTOR, Session, hole_steps, runs_of_true
 
-MIN_NODE_RATE_HZ = 8.0   # attitude nodes per second at least: 8.3 (100 Hz, stride 12) and 25 (stride 4) agree to 0.03 std
+MIN_NODE_RATE_HZ = 8.0   # attitude nodes per second at least (strides 12 and 4 agree: benchmarks/stride_agreement.py)
 MAX_PASSES = 3
 NOISE_RESCALE_TOLERANCE = 0.2     # re-solve when the robust residual scale is off by more than this
 TIME_OFFSET_RELOOK_S2 = 1e-5      # re-solve when tau * (tau - tau0) exceeds this (s^2): the rotation
@@ -102,8 +102,8 @@ def default_stride(session: Session) -> int:
 
     Segments run between the boundaries of `grid.segment_starts` (every magnetometer sample and gyro time),
     a typical (median) segment apart. Over an interval the attitude only carries the integrated gyro, so
-    fewer nodes cost no accuracy (paper-table1 at 100 Hz: stride 12 and 4 agree to 0.03 std, BROAD trial 02
-    at strides 40 and 12 to 0.01 std) and save memory and time: the nodes set the size of the Hessian and
+    fewer nodes cost no accuracy (paper-table1 at 100 Hz and BROAD trial 02 at strides 12 and 4:
+    benchmarks/stride_agreement.py, its record quoted in the README) and save memory and time: the nodes set the size of the Hessian and
     of IPOPT's linear algebra. The choice is from a fixed set so that the kernels, which depend on the
     stride only, are few and installed with magyro: 12 at 100-1000 Hz (BROAD's 285.7 Hz, a phone's 200 Hz
     gyro with a 50 Hz magnetometer), 4 below 96 Hz."""
