@@ -17,9 +17,6 @@ for Robust Inertial Orientation Estimation", Data 6(7):72, 2021.
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
-import subprocess
 import time
 from pathlib import Path
 
@@ -49,8 +46,10 @@ def main() -> None:
     parser.add_argument("--out", type=Path, help="write the numbers as JSON (the record docs/real-data.md renders)")
     args = parser.parse_args()
     t0 = time.perf_counter()
-    record = {"command": "python benchmarks/attached_magnets.py --out docs/numbers/attached-magnets.json",
-              "date": datetime.date.today().isoformat(), "commit": commit(), "rows": []}
+    from machine_load import measured_at, write_record
+
+    record = {**measured_at("python benchmarks/attached_magnets.py --out docs/numbers/attached-magnets.json"),
+              "rows": []}
     load = lambda trial: import_broad_movement(sorted(args.broad.glob(f"{trial}_*.mat"))[0], 10.0)   # noqa: E731
     scales = [1e6 * (np.diag(calibrate(load(t), Options()).K_g) - 1) for t in UNDISTURBED]
     mean = np.mean(scales, axis=0)
@@ -87,14 +86,8 @@ def main() -> None:
     record["seconds"] = time.perf_counter() - t0
     print(f"\n({record['seconds']:.0f} s)")
     if args.out:
-        args.out.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        write_record(args.out, record)
         print(f"wrote {args.out}")
-
-
-def commit() -> str:
-    root = Path(__file__).resolve().parents[1]
-    done = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-    return done.stdout.strip() or "unknown"
 
 
 if __name__ == "__main__":

@@ -6,9 +6,6 @@ BROAD trial 07, beside the least squares' (docs/ekf.md, "The magnetometer's lag"
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
-import subprocess
 from pathlib import Path
 
 from magyro import load_session
@@ -34,11 +31,10 @@ def main() -> None:
     lag = ekf_lag_ms()
     print(f"the EKF's lag on {TRIAL.name}: {lag:.2f} ms")
     if args.out:
-        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                                text=True).stdout.strip()
-        record = {"command": f"python benchmarks/ekf_lag_shipped.py --out {args.out}", "commit": commit,
-                  "date": datetime.date.today().isoformat(), "trial": TRIAL.name, "ekf_lag_ms": lag}
-        Path(args.out).write_text(json.dumps(record, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        from machine_load import measured_at, write_record
+
+        write_record(args.out, {**measured_at(f"python benchmarks/ekf_lag_shipped.py --out {args.out}"),
+                                "trial": TRIAL.name, "ekf_lag_ms": lag})
         print(f"wrote {args.out}")
 
 

@@ -15,9 +15,6 @@ Prints the tables; `--out` writes them as the record docs/make_ekf_numbers.py re
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
-import subprocess
 import time
 from pathlib import Path
 
@@ -30,7 +27,6 @@ from magyro.result.reported import UPPER
 from magyro.studies.scenario import load_problem
 from magyro.studies.simulate import simulate
 
-ROOT = Path(__file__).resolve().parents[1]
 OFF = ((0, 1), (0, 2), (1, 2))
 
 
@@ -74,10 +70,10 @@ def main() -> None:
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
     t0 = time.perf_counter()
-    done = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-    record = {"command": f"python benchmarks/ekf_variants.py --seeds {args.seeds} --step1-seeds {args.step1_seeds} "
-                         "--out FILE", "date": datetime.date.today().isoformat(),
-              "commit": done.stdout.strip() or "unknown", "step1": {}, "variants": {}}
+    from machine_load import measured_at, write_record
+
+    record = {**measured_at(f"python benchmarks/ekf_variants.py --seeds {args.seeds} --step1-seeds {args.step1_seeds} "
+                            "--out FILE"), "step1": {}, "variants": {}}
     for name in ("paper-table1", "phone-module"):
         record["step1"][name] = {str(s): step1(name, s) for s in seeds(args.step1_seeds)}
         rms = record["step1"][name].values()
@@ -97,7 +93,7 @@ def main() -> None:
     record["seconds"] = time.perf_counter() - t0
     print(f"({record['seconds']:.0f} s)")
     if args.out:
-        args.out.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        write_record(args.out, record)
         print(f"wrote {args.out}")
 
 

@@ -4,6 +4,7 @@
 """
 from __future__ import annotations
 
+import json
 import os
 import resource
 import time
@@ -34,13 +35,24 @@ def other_load_line(start: tuple[float, float, float]) -> str:
             f"({100 * other / wall:.0f} % of one of {os.cpu_count()} CPUs; near 0 on a quiet machine)")
 
 
-def provenance(command: str) -> dict:
-    """Where and when a benchmark's record was measured: the command, the date, the commit and the machine."""
+def measured_at(command: str) -> dict:
+    """When and from what a benchmark's record was measured: the command, the date and the commit."""
     import datetime
-    import platform
     import subprocess
 
     root = Path(__file__).resolve().parents[1]
     done = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-    return {"command": command, "date": datetime.date.today().isoformat(), "commit": done.stdout.strip() or "unknown",
+    return {"command": command, "date": datetime.date.today().isoformat(), "commit": done.stdout.strip() or "unknown"}
+
+
+def provenance(command: str) -> dict:
+    """Where and when a benchmark's record was measured: `measured_at` and the machine (for timings)."""
+    import platform
+
+    return {**measured_at(command),
             "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}"}
+
+
+def write_record(path, record: dict) -> None:
+    """A benchmark's record as docs/numbers keeps it: JSON, one-space indent, sorted keys, a final newline."""
+    Path(path).write_text(json.dumps(record, indent=1, sort_keys=True) + "\n", encoding="utf-8")

@@ -49,46 +49,16 @@ def information_at_poses(problem, poses, jacobians):
     """Per pose: (theta information with the attitudes eliminated (24x24), the 12x12 Jacobian of the reported gyro
     parameters (K_g 6, bias 3, misalignment 3) on (dK 9, deps 3), the reported 12x12 covariance, moving time s).
     The same computation as crlb.cramer_rao_at_poses, the reduced information kept before it is inverted."""
-    from magyro.front.prepare import moving_session
-    from magyro.nls.grid import build_grid
-    from magyro.nls.information import propagate, propagation_jacobian
-    from magyro.nls.method import NLS
-    from magyro.nls.problem import JointProblem
+    from magyro.nls.information import cached_propagation_jacobian
     from magyro.nls.reduction import reduce_hessian
-    from magyro.nls.solve import default_stride
-    from magyro.options import Options
     from magyro.result.reported import qr_split
-    from magyro.studies.crlb import truth_linearisation, with_start_pose
-    from magyro.studies.simulate import field_i, mag_from_attitude, simulate, truth_attitude
+    from magyro.studies.crlb import problems_at_poses
 
-    options, nls = Options(), NLS()
-    at = [with_start_pose(problem, pose) for pose in poses]
-    session, _ = simulate(at[0], 0)
-    C_m_i = truth_attitude(at[0], session.t_mag_s - problem.mag_time_offset_s)
-    mag_noise = session.mag - mag_from_attitude(at[0], C_m_i)
-    built = {}
     out = []
-    for pp in at:
-        posed = dataclasses.replace(session, mag=mag_from_attitude(pp, C_m_i) + mag_noise)
-        s = moving_session(posed, options)[0]
-        span = (s.t_gyro_s[0], s.t_gyro_s[-1], s.t_mag_s[0], s.t_mag_s[-1])
-        if span not in built:
-            grid = build_grid(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, nls.stride or default_stride(s))
-            jp = JointProblem(grid, compiled=nls.compiled, estimate_time_offset=options.estimate_time_offset)
-            built[span] = (jp, truth_linearisation(at[0], grid.t_node_s), truth_attitude(at[0], grid.t_node_s[:1])[0])
-        jp, lin, C_node0 = built[span]
-        lin = dataclasses.replace(lin, m0=C_node0.T @ field_i(pp))
-        p = jp.parameters(lin, s.mag, problem.mag_noise_std, problem.gyro_noise_density_rad_s_sqrt_hz,
-                          s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, problem.mag_time_offset_s)
-        red = reduce_hessian(jp.hessian_function(np.zeros(jp.n_x), p), jp.n_theta, jp.B)
-        info = red.information
+    for jp, lin, p, s in problems_at_poses(problem, poses):
+        info = reduce_hessian(jp.hessian_function(np.zeros(jp.n_x), p), jp.n_theta, jp.B).information
         C0, _ = qr_split(lin.K0)
-        g = p[: jp.n_glob_p]
-        theta0 = np.zeros(jp.n_theta)
-        key = (jp.n_theta, theta0.tobytes(), np.asarray(g, float).tobytes(), np.asarray(C0, float).tobytes())
-        if key not in jacobians:
-            jacobians[key] = propagation_jacobian(jp, theta0, g, C0)
-        J = jacobians[key]
+        J = cached_propagation_jacobian(jp, np.zeros(jp.n_theta), p[: jp.n_glob_p], C0, jacobians)
         cov = J @ np.linalg.inv(info) @ J.T
         out.append((info, J[:12, 9:21], cov[:12, :12], float(s.t_gyro_s[-1] - s.t_gyro_s[0]), s))
     return out
@@ -98,12 +68,11 @@ def path_bound(problem, pose, session):
     """The bias information with a perfect magnetometer along the motion's own field path, and the largest the
     field direction can give per second (deg/s units): int P_u (P_u Q P_u)^+ P_u dt, u the unit field in the
     gyro frame, Q = sigma^2 K_g K_g^T the rate noise's density in the gyro frame."""
-    from magyro import so3
+    from magyro.studies.crlb import with_start_pose
     from magyro.studies.simulate import truth_body_attitude
 
     Q = (problem.gyro_noise_density_deg_s_sqrt_hz ** 2) * problem.K_g @ problem.K_g.T   # (deg/s)^2 / Hz
     mw = problem.field_w / np.linalg.norm(problem.field_w)
-    C0 = so3.euler_to_dcm(np.array(pose, float))
 
     def inst(u):
         P = np.eye(3) - np.outer(u, u)
@@ -111,8 +80,7 @@ def path_bound(problem, pose, session):
 
     t = session.t_gyro_s[::10]
     dt = np.gradient(t)
-    C_b_w = truth_body_attitude(dataclasses.replace(problem, motion=dataclasses.replace(
-        problem.motion, initial_euler_deg=np.array(pose, float))), t)
+    C_b_w = truth_body_attitude(with_start_pose(problem, pose), t)
     u = np.einsum("nji,j->ni", C_b_w, mw)
     I = sum(w * inst(v) for w, v in zip(dt, u))
     rng = np.random.default_rng(0)

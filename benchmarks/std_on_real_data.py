@@ -17,11 +17,7 @@ for Robust Inertial Orientation Estimation", Data 6(7):72, 2021.
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
-import subprocess
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -91,9 +87,10 @@ def main() -> None:
     args = parser.parse_args()
     t0 = time.perf_counter()
     sessions, cals = {}, {}
-    record = {"command": "python benchmarks/std_on_real_data.py --out docs/numbers/std-on-real-data.json",
-              "date": datetime.date.today().isoformat(), "commit": commit(), "trials": {}, "day_b_chi_square": None,
-              "distortions": {}}
+    from machine_load import measured_at, write_record
+
+    record = {**measured_at("python benchmarks/std_on_real_data.py --out docs/numbers/std-on-real-data.json"),
+              "trials": {}, "day_b_chi_square": None, "distortions": {}}
     print("| trial | field disturbance (% of field, s) | std / white std (median) | split RMS z, std | split RMS z, white std |")
     print("|---|---|---|---|---|")
     for trial in args.trials.split(","):
@@ -132,14 +129,8 @@ def main() -> None:
     record["seconds"] = time.perf_counter() - t0
     print(f"\n({record['seconds']:.0f} s)")
     if args.out:
-        args.out.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        write_record(args.out, record)
         print(f"wrote {args.out}")
-
-
-def commit() -> str:
-    root = Path(__file__).resolve().parents[1]
-    done = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-    return done.stdout.strip() or "unknown"
 
 
 if __name__ == "__main__":

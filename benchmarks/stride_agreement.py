@@ -9,9 +9,6 @@ strides' kernels are installed; a stride of one's own compiles its kernels first
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
-import subprocess
 import time
 from pathlib import Path
 
@@ -52,11 +49,9 @@ def main() -> None:
         print(f"{rows[-1]['case']}: strides {case[1]} and {case[2]} differ by at most "
               f"{rows[-1]['max_abs_z']:.3f} std ({rows[-1]['worst']}), {rows[-1]['seconds']:.0f} s")
     if args.out:
-        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                                text=True).stdout.strip()
-        record = {"command": f"python benchmarks/stride_agreement.py --out {args.out}", "commit": commit,
-                  "date": datetime.date.today().isoformat(), "rows": rows}
-        Path(args.out).write_text(json.dumps(record, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        from machine_load import measured_at, write_record
+
+        write_record(args.out, {**measured_at(f"python benchmarks/stride_agreement.py --out {args.out}"), "rows": rows})
         print(f"wrote {args.out}")
 
 

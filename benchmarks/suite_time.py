@@ -11,7 +11,6 @@ from the record when the README has that block's markers.
 from __future__ import annotations
 
 import argparse
-import json
 import re
 import subprocess
 import sys
@@ -19,7 +18,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from machine_load import busy_cpu_s, other_load_line, own_cpu_s, provenance  # noqa: E402
+from machine_load import busy_cpu_s, other_load_line, own_cpu_s, provenance, write_record  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -47,7 +46,7 @@ def main() -> None:
     print(f"{' '.join(command[1:])}: exit {done.returncode}, {record['counts']}, {wall / 60:.1f} min wall; "
           f"{record['other_load']}")
     if args.out:
-        args.out.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        write_record(args.out, record)
         print(f"wrote {args.out}")
 
 

@@ -14,9 +14,7 @@ README's sentence from the record.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import subprocess
 import time
 from pathlib import Path
 
@@ -69,16 +67,16 @@ def main() -> None:
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
     t0 = time.perf_counter()
-    done = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-    record = {"command": f"python benchmarks/trajectory_accuracy.py --runs {args.runs} --out FILE",
-              "date": datetime.date.today().isoformat(), "commit": done.stdout.strip() or "unknown",
+    from machine_load import measured_at, write_record
+
+    record = {**measured_at(f"python benchmarks/trajectory_accuracy.py --runs {args.runs} --out FILE"),
               "broad_02": broad02()}
     print(json.dumps(record["broad_02"], indent=1), flush=True)
     record["simulated"] = simulated(args.runs)
     record["seconds"] = time.perf_counter() - t0
     print(json.dumps(record["simulated"], indent=1))
     if args.out:
-        args.out.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        write_record(args.out, record)
         print(f"wrote {args.out}")
 
 

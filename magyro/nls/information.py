@@ -28,15 +28,19 @@ def propagate(problem: JointProblem, theta, g, cov_theta, C_ref, jacobians: dict
     """Covariance of the reported vector by central differences through R = S^-1 and the QR split. The Jacobian
     depends on the linearisation (g, C_ref) only, not on the data: `jacobians`, a dict, keeps it across calls
     at the same point (the start poses of `magyro plan`'s search, one a pose for every motion scored)."""
-    if jacobians is None:
-        J = propagation_jacobian(problem, theta, g, C_ref)
-    else:
-        key = (problem.n_theta, np.asarray(theta, float).tobytes(), np.asarray(g, float).tobytes(),
-               np.asarray(C_ref, float).tobytes())
-        if key not in jacobians:
-            jacobians[key] = propagation_jacobian(problem, theta, g, C_ref)
-        J = jacobians[key]
+    J = cached_propagation_jacobian(problem, theta, g, C_ref, jacobians)
     return J @ cov_theta @ J.T
+
+
+def cached_propagation_jacobian(problem: JointProblem, theta, g, C_ref, jacobians: dict | None) -> np.ndarray:
+    """`propagation_jacobian`, kept in `jacobians` (a dict, or None: not kept) under its linearisation point."""
+    if jacobians is None:
+        return propagation_jacobian(problem, theta, g, C_ref)
+    key = (problem.n_theta, np.asarray(theta, float).tobytes(), np.asarray(g, float).tobytes(),
+           np.asarray(C_ref, float).tobytes())
+    if key not in jacobians:
+        jacobians[key] = propagation_jacobian(problem, theta, g, C_ref)
+    return jacobians[key]
 
 
 def propagation_jacobian(problem: JointProblem, theta, g, C_ref) -> np.ndarray:

@@ -69,13 +69,20 @@ def cramer_rao_at_poses(problem: Scenario, start_poses_deg, options: Options | N
     same from every pose, and so is the noise (the same draws); per pose only the magnetometer readings
     (`simulate.mag_from_attitude`), the field m^i and the information differ. `jacobians` keeps the
     propagation's Jacobian of each pose across calls (`information.propagate`)."""
+    return [information_covariance(jp, lin, p, jacobians=jacobians)
+            for jp, lin, p, _ in problems_at_poses(problem, start_poses_deg, options, nls)]
+
+
+def problems_at_poses(problem: Scenario, start_poses_deg, options: Options | None = None, nls: NLS | None = None):
+    """Per start pose, in order: (joint problem, linearisation at the truth, its parameter vector, the moving
+    session), as `cramer_rao_at_poses` describes: one simulated session, its magnetometer readings re-made per pose,
+    the problem's graph built once per moving span."""
     options, nls = options or Options(), nls or NLS()
     at = [with_start_pose(problem, pose) for pose in start_poses_deg]
     session, _ = simulate(at[0], 0)
     C_m_i = truth_attitude(at[0], session.t_mag_s - problem.mag_time_offset_s)
     mag_noise = session.mag - mag_from_attitude(at[0], C_m_i)
     built: dict[tuple, tuple] = {}      # the moving span -> (joint problem, linearisation at pose 0, C_m^i at node 0)
-    out = []
     for pose_problem in at:
         posed = dataclasses.replace(session, mag=mag_from_attitude(pose_problem, C_m_i) + mag_noise)
         s = moving_session(posed, options)[0]
@@ -88,8 +95,7 @@ def cramer_rao_at_poses(problem: Scenario, start_poses_deg, options: Options | N
         lin = dataclasses.replace(lin, m0=C_node0.T @ field_i(pose_problem))     # truth_linearisation's m0
         p = jp.parameters(lin, s.mag, problem.mag_noise_std, problem.gyro_noise_density_rad_s_sqrt_hz,
                           s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, problem.mag_time_offset_s)
-        out.append(information_covariance(jp, lin, p, jacobians=jacobians))
-    return out
+        yield jp, lin, p, s
 
 
 def cramer_rao_std(problem: Scenario, session: Session, options: Options | None = None, nls: NLS | None = None) -> dict:
