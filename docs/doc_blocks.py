@@ -72,6 +72,11 @@ def read_record(name: str) -> dict:
     return json.loads((RECORDS / f"{name}.json").read_text(encoding="utf-8"))
 
 
+def has_record(name: str) -> bool:
+    """Whether docs/numbers/NAME.json exists (a page renders a record's blocks once it has been measured)."""
+    return (RECORDS / f"{name}.json").is_file()
+
+
 def commit() -> str:
     """The short commit of the working tree a record is measured on."""
     import subprocess

@@ -18,7 +18,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import doc_blocks  # noqa: E402
-from doc_blocks import DOCS, RECORDS, read_record, span, table  # noqa: E402
+from doc_blocks import DOCS, RECORDS, has_record, read_record, span, table  # noqa: E402
 
 PAGE = DOCS / "ekf.md"
 COMMAND = "python docs/make_ekf_numbers.py"
@@ -217,13 +217,13 @@ def blocks() -> dict[str, str]:
     import shipped_data_numbers
 
     out["ekf-mag-levels"] = shipped_data_numbers.ekf_mag_levels_block()
-    if (RECORDS / f"{LAG}.json").is_file():
+    if has_record(LAG):
         out["ekf-lag-shipped"] = lag_shipped_block(read_record(LAG))
-    if (RECORDS / f"{REAL}.json").is_file():
+    if has_record(REAL):
         r = read_record(REAL)
         out.update({"ekf-real-table": real_table_block(r), "ekf-real-summary": real_summary_block(r),
                     "ekf-misfit-broad": misfit_broad(r)})
-    if (RECORDS / f"{VARIANTS}.json").is_file():
+    if has_record(VARIANTS):
         v = read_record(VARIANTS)
         out.update({"ekf-variants": variants_block(v), "ekf-default": default_block(v),
                     "ekf-consider": consider_block(v), "ekf-no-consider-z": no_consider_z_block(v),
@@ -234,11 +234,11 @@ def blocks() -> dict[str, str]:
                               f"{t['correlation_time_s']:.1f} s, on trial 07")
         out["ekf-room-ratio"] = (f"{t['std_over_white_median']:.1f}x its white std (median over the gyro parameters, "
                                  "docs/real-data.md section 2)")
-        if (RECORDS / f"{REAL}.json").is_file():
+        if has_record(REAL):
             row = next(r for r in read_record(REAL)["rows"] if r["name"] == "BROAD 07")
             if row.get("ekf_std_over_white"):
                 out["ekf-room-ratio"] += f"; the EKF's, {row['ekf_std_over_white']:.1f}x"
-    if (RECORDS / f"{SPEED}.json").is_file():
+    if has_record(SPEED):
         out["ekf-speed"] = speed_block(read_record(SPEED))
     return out
 

@@ -127,9 +127,9 @@ def cheap_blocks() -> dict[str, str]:
                         f"in `z` (by Archimedes' hat-box theorem, equal heights cut equal areas) times {SPHERE_SECTORS} "
                         f"sectors of {doc_blocks.g(360 / SPHERE_SECTORS)} deg longitude"),
     }
-    if (doc_blocks.RECORDS / f"{PREDICTED_RECORD}.json").is_file():
+    if doc_blocks.has_record(PREDICTED_RECORD):
         out.update(predicted_blocks(doc_blocks.read_record(PREDICTED_RECORD)))
-    if (doc_blocks.RECORDS / f"{SPEED_RECORD}.json").is_file():
+    if doc_blocks.has_record(SPEED_RECORD):
         out.update(speed_blocks(doc_blocks.read_record(SPEED_RECORD)))
     return out
 

@@ -228,7 +228,7 @@ def blocks(shipped=None) -> dict[str, str]:
 
 def suite_time_block() -> dict[str, str]:
     """The suite's time (benchmarks/suite_time.py's record), once the README's "Tests" section has its markers."""
-    if "<!-- numbers:suite-time:start -->" not in PAGE.read_text(encoding="utf-8") or not readme_record_numbers.has(
+    if "<!-- numbers:suite-time:start -->" not in PAGE.read_text(encoding="utf-8") or not doc_blocks.has_record(
             "suite-time"):
         return {}
     return {"suite-time": readme_record_numbers.suite_time(doc_blocks.read_record("suite-time"))}

@@ -263,7 +263,7 @@ def blocks(record: dict | None = None, record200: dict | None = None) -> dict[st
            "how-to-read": how_to_read_block(record), "paper-means": paper_means_block(record),
            "full-table": full_table_block(record), "ekf": ekf_block(record), "targets": targets_block(record),
            "timing": timing_block(record)}
-    if record200 is not None or (doc_blocks.RECORDS / f"{RECORD_200}.json").is_file():
+    if record200 is not None or doc_blocks.has_record(RECORD_200):
         out["runs200"] = runs200_block(record200 or read_record(RECORD_200))
     return out
 

@@ -15,7 +15,7 @@ import numpy as np
 
 import doc_blocks
 import make_table1_numbers as table1
-from doc_blocks import fixed, fmt, read_record, span
+from doc_blocks import fixed, fmt, has_record, read_record, span
 
 PREFILTER_EXAMPLE = (1.5, 28.0)   # Hz: a hand's turning, and a phone's gyro rate (README step 6)
 
@@ -130,24 +130,20 @@ def blocks() -> dict[str, str]:
     out = {"unit-ratios": unit_ratios(), "prefilter-bias": prefilter_bias()}
     mc = read_record(table1.RECORD)
     out.update({"honesty": honesty(mc), "homogeneous-std": homogeneous_std(mc), "ekf-mag": ekf_mag(mc)})
-    if has("std-on-real-data"):
+    if has_record("std-on-real-data"):
         out.update(room(read_record("std-on-real-data")))
-    if has("predicted-vs-actual"):
+    if has_record("predicted-vs-actual"):
         out["prediction-accuracy"] = prediction(read_record("predicted-vs-actual"))
     for name, key, make in (("bench-scale", "scale-timing", scale_timing),
                             ("bench-recording-check", "recording-check-timing", recording_check_timing)):
-        if has(name):
+        if has_record(name):
             out[key] = make(read_record(name))
-    if has("ekf-real-data"):
+    if has_record("ekf-real-data"):
         import make_ekf_numbers
 
         out["misfit-broad"] = make_ekf_numbers.misfit_broad(read_record("ekf-real-data"))
-    if has("stride-agreement"):
+    if has_record("stride-agreement"):
         out["stride-agreement"] = stride_agreement(read_record("stride-agreement"))
-    if has("trajectory-accuracy"):
+    if has_record("trajectory-accuracy"):
         out["trajectory-accuracy"] = trajectory(read_record("trajectory-accuracy"))
     return out
-
-
-def has(record: str) -> bool:
-    return (doc_blocks.RECORDS / f"{record}.json").is_file()

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 import doc_blocks
-from doc_blocks import RECORDS, fixed, fmt, read_record, span, table
+from doc_blocks import RECORDS, fixed, fmt, has_record, read_record, span, table
 
 STD_RECORD = "std-on-real-data"
 MAGNETS_RECORD = "attached-magnets"
@@ -152,7 +152,7 @@ def blocks(trials: dict) -> dict[str, str]:
     """The blocks of these records that exist (a page may be rendered before a record is measured)."""
     out = {"magnet-refusals": refusals_block(trials),
            "day-b-yaw": f"{trials['day_b_peak_to_peak']['misalignment_deg'][2]:.2f}"}
-    if (RECORDS / f"{REFERENCE_RECORD}.json").is_file():
+    if has_record(REFERENCE_RECORD):
         r = read_record(REFERENCE_RECORD)
         out.update({"ref-frames": reference_frames_block(r), "ref-ideal": ideal_block(r),
                     "ref-magnets": reference_magnets_block(r), **reference_prose(r), **fast_slow_blocks(r)})
@@ -161,11 +161,11 @@ def blocks(trials: dict) -> dict[str, str]:
         z = [f"{v:.1f}" for v in t["broad_02"]["rms_z_per_axis"]]
         out["trajectory-z"] = (f"{', '.join(z[:-1])} and {z[-1]} (`python benchmarks/trajectory_accuracy.py`, "
                                f"{t['date']})")
-    if (RECORDS / f"{STD_RECORD}.json").is_file():
+    if has_record(STD_RECORD):
         s = read_record(STD_RECORD)
         out.update({"std-table": std_table_block(s), "std-summary": std_summary_block(s),
                     "day-b-chi-square": chi_square_block(s)})
-    if (RECORDS / f"{MAGNETS_RECORD}.json").is_file():
+    if has_record(MAGNETS_RECORD):
         m = read_record(MAGNETS_RECORD)
         out.update({"magnets-intro": magnets_intro_block(m), "magnets-table": magnets_table_block(m),
                     "magnets-summary": magnets_summary_block(m)})

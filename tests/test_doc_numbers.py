@@ -36,13 +36,23 @@ def stale_blocks(page: Path, made: dict[str, str]) -> list[str]:
     return blocks_module.stale(page.read_text(encoding="utf-8"), made)
 
 
+def assert_fresh(generator, made: dict[str, str]) -> None:
+    """The page of a generator (its PAGE, its COMMAND) holds exactly the blocks `made`."""
+    page = generator.PAGE.relative_to(DOCS.parent)
+    assert not stale_blocks(generator.PAGE, made), f"{page} is stale: regenerate it with `{generator.COMMAND}`"
+
+
+def assert_every_block_generated(generator, made) -> None:
+    """Every block of the generator's page is one it makes (no block is left to hand-editing)."""
+    assert sorted(blocks_module.block_names_in_page(generator.PAGE.read_text(encoding="utf-8"))) == sorted(made)
+
+
 def test_readme_is_what_the_tool_gives(readme_blocks):
-    assert not stale_blocks(readme.PAGE, readme_blocks), f"README.md is stale: regenerate it with `{readme.COMMAND}`"
+    assert_fresh(readme, readme_blocks)
 
 
 def test_readme_has_no_block_without_a_generator(readme_blocks):
-    names = blocks_module.block_names_in_page(readme.PAGE.read_text(encoding="utf-8"))
-    assert sorted(names) == sorted(readme_blocks)
+    assert_every_block_generated(readme, readme_blocks)
 
 
 def test_readme_quotes_the_lag_the_solve_prints(broad02_solved, readme_blocks):
@@ -54,7 +64,7 @@ def test_readme_quotes_the_lag_the_solve_prints(broad02_solved, readme_blocks):
 
 def test_spec_is_what_the_code_says():
     made = spec.blocks()
-    assert not stale_blocks(spec.PAGE, made), f"docs/spec.md is stale: regenerate it with `{spec.COMMAND}`"
+    assert_fresh(spec, made)
 
 
 def test_a_changed_constant_makes_the_page_stale(monkeypatch):
@@ -70,7 +80,7 @@ def test_a_changed_constant_makes_the_page_stale(monkeypatch):
 
 def test_real_data_tables_are_rendered_from_their_record():
     made = records.blocks()
-    assert not stale_blocks(records.PAGE, made), f"docs/real-data.md is stale: regenerate it with `{records.COMMAND}`"
+    assert_fresh(records, made)
 
 
 def test_a_changed_record_changes_the_table():
@@ -82,9 +92,8 @@ def test_a_changed_record_changes_the_table():
 def test_table1_is_rendered_from_its_record():
     """docs/table1.md: every table and figure is what magyro.studies.montecarlo_table makes of the record's runs."""
     made = table1.blocks()
-    assert not stale_blocks(table1.PAGE, made), f"docs/table1.md is stale: regenerate it with `{table1.COMMAND}`"
-    names = blocks_module.block_names_in_page(table1.PAGE.read_text(encoding="utf-8"))
-    assert sorted(names) == sorted(made)
+    assert_fresh(table1, made)
+    assert_every_block_generated(table1, made)
 
 
 def test_the_table_is_recomputed_from_the_runs_not_copied():
@@ -107,8 +116,7 @@ def test_a_changed_monte_carlo_record_changes_table1_and_the_readme():
 
 def test_observability_constants_and_records_are_the_codes(monkeypatch):
     made = observability.cheap_blocks()
-    assert not stale_blocks(observability.PAGE, made), (
-        f"docs/observability.md is stale: regenerate it with `{observability.COMMAND}`")
+    assert_fresh(observability, made)
     from magyro.observability import gate
 
     monkeypatch.setattr(gate, "WELL_CONDITIONED", 50.0)
@@ -117,13 +125,11 @@ def test_observability_constants_and_records_are_the_codes(monkeypatch):
 
 def test_observability_has_no_block_without_a_generator():
     """Its blocks are the cheap ones (checked here) and those made from observe's reports (tests/test_observe.py)."""
-    names = blocks_module.block_names_in_page(observability.PAGE.read_text(encoding="utf-8"))
-    assert sorted(names) == sorted([*observability.cheap_blocks(), *observability.REPORT_BLOCKS])
+    assert_every_block_generated(observability, [*observability.cheap_blocks(), *observability.REPORT_BLOCKS])
 
 
 def test_real_data_has_no_block_without_a_generator():
-    names = blocks_module.block_names_in_page(records.PAGE.read_text(encoding="utf-8"))
-    assert sorted(names) == sorted(records.blocks())
+    assert_every_block_generated(records, records.blocks())
 
 
 def test_a_changed_std_record_changes_real_data_and_the_readme():
@@ -147,9 +153,8 @@ def test_a_changed_magnets_record_changes_section_4():
 
 def test_ekf_page_is_rendered_from_its_records():
     made = ekf_page.blocks()
-    assert not stale_blocks(ekf_page.PAGE, made), f"docs/ekf.md is stale: regenerate it with `{ekf_page.COMMAND}`"
-    names = blocks_module.block_names_in_page(ekf_page.PAGE.read_text(encoding="utf-8"))
-    assert sorted(names) == sorted(made)
+    assert_fresh(ekf_page, made)
+    assert_every_block_generated(ekf_page, made)
 
 
 def test_a_changed_ekf_record_changes_its_tables():
