@@ -363,7 +363,7 @@ class ExcitationMonitor:
     def still_at_end_s(self) -> float:
         """How long the gyro has been still at the end of the data (the rests' own rule, `front.rests`)."""
         g = self.gyro.view()
-        recent = g[g[:, 0] >= g[-1, 0] - 2 * END_REST_S - WINDOW_S]
+        recent = g[np.searchsorted(g[:, 0], g[-1, 0] - 2 * END_REST_S - WINDOW_S):]   # times increase (_Rows)
         if len(recent) < 5 or self.gyro_std <= 0:
             return 0.0
         t_back_s = recent[-1, 0] - recent[::-1, 0]
