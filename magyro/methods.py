@@ -16,6 +16,9 @@ def run_method(method, session, options=None):
     least squares' knobs (NLS) run `magyro.nls.run.calibrate_nls` (returns a `magyro.Calibration`)."""
     own = getattr(method, "calibrate", None)
     if own is not None:
+        if options is not None and options.accelerometer:
+            raise InputError("the accelerometer is calibrated by the least squares only (--method nls); the paper's "
+                             "EKF calibrates the gyro and the magnetometer")
         return own(session, options)
     if isinstance(method, NLS):
         from magyro.nls.run import calibrate_nls

@@ -73,6 +73,8 @@ class Options:
     split_check: bool = False               # also calibrate each half alone and compare (magyro.result.consistency)
     max_std: StdBounds = StdBounds()        # the refusal bound: the gate refuses above it (force: solve anyway)
     repairs: Repairs = Repairs()            # what the recording check may repair (restamps, held, saturation, spikes)
+    accelerometer: bool = False             # the accelerometer joins the least squares (issue 26; needs ax ay az)
+    gravity_m_s2: float = 9.80665           # the local gravity the accelerometer is calibrated against
 
     @classmethod
     def in_user_units(cls, gyro_noise_deg_s_sqrt_hz: float | None = None, mag_noise_std: float | None = None,

@@ -33,6 +33,8 @@ def solve(
     history: Optional[Path] = typer.Option(None, "--history", help="--method ekf: write K, bias, m^i and their 1-sigma over time (Parquet)."),
     history_plot: Optional[Path] = typer.Option(None, "--history-plot", help="--method ekf: plot them like the paper's Fig. 3/6/7 (needs magyro[plot])."),
     trajectory: Optional[Path] = typer.Option(None, "--trajectory", help="--method nls: write the solved attitude at the nodes (quaternion C_m_i and its std) and the calibrated field (Parquet)."),
+    accelerometer: bool = typer.Option(False, "--accelerometer/--no-accelerometer", help="--method nls: calibrate the accelerometer (ax ay az, m/s^2) in the same least squares: K_a, bias, C_b_a against gravity (default: off)."),
+    gravity: float = typer.Option(9.80665, "--gravity", min=9.7, max=9.9, help="The local gravity in m/s^2 the accelerometer is calibrated against."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
 ):
     """The joint calibration: magnetometer ellipsoid, gyro K_g, bias, misalignment, field, attitude.
@@ -46,7 +48,8 @@ def solve(
         bounds = StdBounds(max_std_scale_ppm, max_std_nonorth_deg, max_std_bias_deg_s, max_std_misalignment_deg)
         options = Options.in_user_units(gyro_noise_deg_s_sqrt_hz, mag_noise, force=force, estimate_time_offset=time_offset,
                                         trim_rests=not keep_rests, split_check=split_check, max_std=bounds,
-                                        repairs=Repairs.without(no_repair or []))
+                                        repairs=Repairs.without(no_repair or []), accelerometer=accelerometer,
+                                        gravity_m_s2=gravity)
         cal = solve_file(session, options, method, {"stride": stride, "loss": loss, "hard_iron_walk": hard_iron_walk},
                          gyro_unit=gyro_unit,
                          mag_unit=mag_unit, output=output, history=history, history_plot=history_plot,

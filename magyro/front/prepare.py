@@ -39,6 +39,7 @@ class Prepared:
     rests: rests.Rests | None = None
     noise_source: str = ""
     levels: NoiseLevels | None = None   # where each level came from (given, rest, guess)
+    untrimmed: Session | None = None    # the session before its end rests were trimmed (the accelerometer's rests)
 
 
 def attitude_span_deg(session: Session, bias_rad_s: np.ndarray | None = None) -> float:
@@ -139,6 +140,7 @@ def moving_session(session: Session, options: Options) -> tuple[Session, NoiseLe
 
 def prepare(session: Session, options: Options) -> Prepared:
     """Steps 1-3: noise, rests, ellipsoid, observability. Raises ObservabilityError unless forced."""
+    untrimmed = session
     session, levels, found = moving_session(session, options)
     sigma_mag, density = levels.mag_std, levels.gyro_density_rad_s_sqrt_hz
     gyro_std, mag_sample = levels.gyro_sample_std_rad_s, levels.mag_sample_std
@@ -159,4 +161,4 @@ def prepare(session: Session, options: Options) -> Prepared:
         raise ObservabilityError(
             f"the motion does not excite every gyro parameter: {analysis.summary()} (--force solves anyway)", analysis
         )
-    return Prepared(session, sigma_mag, density, fit, field, analysis, found, levels.source, levels)
+    return Prepared(session, sigma_mag, density, fit, field, analysis, found, levels.source, levels, untrimmed)

@@ -15,7 +15,7 @@ from magyro.nls.hard_iron import hard_iron_at_samples
 from magyro.nls.information import propagate
 from magyro.nls.reduction import Reduced
 from magyro.nls.method import NLS
-from magyro.nls.interval import N_GLOBAL
+from magyro.nls.accelerometer import accelerometer_result
 from magyro.nls.problem import JointProblem
 from magyro.nls.variance import MIN_REDUNDANCY
 from magyro.nls.solve import Solution, gyro_residuals, magnetometer_residuals, residual_matrix
@@ -207,7 +207,8 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
         noise=noise_report(prep, sol, disturbance),
         fit=fit,
         time_offset_s=tau,
-        time_offset_estimated=problem.n_theta > N_GLOBAL,
+        time_offset_estimated=problem.estimate_time_offset,
         rests=rest_check(prep.rests, Kg, C.T @ eps),
         warnings=warnings_for(fit, a, C, prep.fit) + guessed_level_warnings(prep, sol),
+        accelerometer=accelerometer_result(problem, theta, g, cov_theta) if problem.accelerometer else None,
     )

@@ -2,7 +2,8 @@
 
 `setup.py` calls `install_kernels` on the package being built. Installed are the kernels of both strides
 magyro picks from (grid.STRIDES: 12, and 4 for sensors below 96 Hz), with
-the time offset estimated, as `magyro solve`, `observe`, `--loss huber` and `--split-check` use them;
+the time offset estimated, as `magyro solve`, `observe`, `--loss huber` and `--split-check` use them, without
+and with the accelerometer (`--accelerometer`);
 the loss, the rates, the gaps and the length of the session do not change a kernel. Other shapes are
 compiled on first use and cached (kernels.py).
 """
@@ -12,12 +13,12 @@ from pathlib import Path
 
 from magyro.nls.grid import STRIDES
 from magyro.nls.kernels import build_libraries, find_compiler, generate_c, library_name
-from magyro.nls.interval import N_GLOBAL, interval_kernels, kernel_key
+from magyro.nls.interval import N_ACC_THETA, N_GLOBAL, interval_kernels, kernel_key
 
 
 def installed_shapes() -> list[tuple[int, int, int, bool]]:
     """(stride, sub-steps, theta size, moving hard iron) of each installed kernel set (`kernel_key`'s arguments)."""
-    return [(stride, 1, N_GLOBAL + 1, False) for stride in STRIDES]
+    return [(stride, 1, N_GLOBAL + 1 + acc, False) for stride in STRIDES for acc in (0, N_ACC_THETA)]
 
 
 def install_kernels(folder: Path) -> list[Path]:

@@ -8,6 +8,9 @@ An interval runs from attitude node k to node k+1 over `stride` segments, each o
                   threshold a parameter (NO_HUBER: none); w_seg 0 where a segment starts at no sample
     gyro          Winv vee(E - E^T)/2 / sqrt(T_n)     E: mismatch of the integrated gyro against the node attitudes
     walk          the moving hard iron's step, when it walks
+    accelerometer (with `acc`) w_acc sum_j c_j (A y_a(t_j) + b - g C_i^m(t_j) u^i): the interval's mean specific force
+                  against gravity (up u^i in frame i, 2 dof; g given), then the rests' mean at a node
+                  (nls/accelerometer.py)
 
 Each sub-step rotates by (w_a + w_b)/2 dt + dt^2/12 (w_a x w_b), w = K y_g + eps. `interval_kernels` gives the
 residuals, their sum of squares with its gradient, and the Gauss-Newton blocks; `kernel_set` the compiled
@@ -27,6 +30,8 @@ TIME_OFFSET_SCALE_S = 0.01
 UPPER_INDEX = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
 GLOBAL_LAYOUT = [("S0", 9), ("h0", 3), ("K0", 9), ("eps0", 3), ("m0", 3), ("B", 6), ("field_scale", 1), ("Winv", 9), ("w_mag", 1), ("tau0", 1),
                  ("huber", 1)]
+ACC_GLOBAL_LAYOUT = [("A0", 9), ("b0", 3), ("u0", 3), ("Bu", 6), ("g_acc", 1)]   # appended with the accelerometer
+N_ACC_THETA = 14       # dA (9, column-major), db (3, m/s^2), du (2): after the time offset
 NO_HUBER = 1e30   # the Huber threshold (noise sigmas) of the plain least squares: no residual reaches it
 
 
@@ -76,13 +81,44 @@ def unpack_globals(theta, g):
     eps = parts["eps0"] + theta[GLOBAL_SLICES["deps"]]
     m_raw = parts["m0"] + ca.mtimes(ca.reshape(parts["B"], 3, 2), theta[GLOBAL_SLICES["dm"]])
     m_i = m_raw / ca.norm_2(m_raw)
-    tau = parts["tau0"] + (TIME_OFFSET_SCALE_S * theta[GLOBAL_SLICES["dtau"]] if theta.shape[0] > N_GLOBAL else 0)
+    tau = parts["tau0"] + (TIME_OFFSET_SCALE_S * theta[GLOBAL_SLICES["dtau"]] if has_time_offset(theta.shape[0]) else 0)
     return S, h, K, eps, m_i, tau, ca.reshape(parts["Winv"], 3, 3), parts["w_mag"], parts["huber"]
 
 
-def data_layout(stride: int, L: int, walk: bool = False) -> list[tuple[str, int]]:
-    return [("Cbar", 9), ("qD", 4), ("w_int", 1), ("ymag", 3 * stride), ("wseg", stride), ("ymid", 3 * stride),
-            ("dt", stride * L), ("ya", 3 * stride * L), ("yb", 3 * stride * L)] + ([("w_walk", 1)] if walk else [])
+def has_time_offset(n_theta: int) -> bool:
+    """Whether a theta of this size holds the time offset: N_GLOBAL, + 1 with it, + N_ACC_THETA (even) with the
+    accelerometer."""
+    return (n_theta - N_GLOBAL) % 2 == 1
+
+
+def has_accelerometer(n_theta: int) -> bool:
+    return n_theta - N_GLOBAL >= N_ACC_THETA
+
+
+def global_size(acc: bool = False) -> int:
+    return sum(k for _, k in GLOBAL_LAYOUT + (ACC_GLOBAL_LAYOUT if acc else []))
+
+
+def data_layout(stride: int, L: int, walk: bool = False, acc: bool = False) -> list[tuple[str, int]]:
+    return ([("Cbar", 9), ("qD", 4), ("w_int", 1), ("ymag", 3 * stride), ("wseg", stride), ("ymid", 3 * stride),
+             ("dt", stride * L), ("ya", 3 * stride * L), ("yb", 3 * stride * L)] + ([("w_walk", 1)] if walk else [])
+            + ([("yacc", 3 * stride), ("cacc", stride), ("w_acc", 1), ("yrest0", 3), ("wrest0", 1), ("yrest1", 3),
+                ("wrest1", 1)] if acc else []))
+
+
+def unpack_accelerometer(theta, g):
+    """(A, b, u^i, g_m_s2) of the accelerometer: f^m = A y_a + b; the unit up direction in frame i; gravity."""
+    n = theta.shape[0]
+    d = theta[n - N_ACC_THETA:]
+    o = sum(k for _, k in GLOBAL_LAYOUT)
+    parts = {}
+    for name, k in ACC_GLOBAL_LAYOUT:
+        parts[name] = g[o : o + k]
+        o += k
+    A = ca.reshape(parts["A0"], 3, 3) + ca.reshape(d[:9], 3, 3)
+    b = parts["b0"] + d[9:12]
+    u_raw = parts["u0"] + ca.mtimes(ca.reshape(parts["Bu"], 3, 2), d[12:14])
+    return A, b, u_raw / ca.norm_2(u_raw), parts["g_acc"]
 
 
 def global_part(g, name: str):
@@ -110,7 +146,7 @@ def huber_scaled(r, threshold):
     return r * ca.if_else(outside, ca.sqrt(threshold * (2.0 * n_safe - threshold)) / n_safe, 1.0)
 
 
-def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool = False):
+def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool = False, acc: bool = False):
     """Whitened residuals of one interval: `stride` magnetometer samples, then the gyro mismatch, then (with a
     moving hard iron, `walk`) its random-walk step. A node's state s is phi (3), then eta (3) when `walk`:
     the hard iron over the interval from the node is h + field_scale * eta_k."""
@@ -120,15 +156,22 @@ def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool =
         h = h + global_part(g, "field_scale") * s_k[3:6]
     o = 0
     parts = {}
-    for name, n in data_layout(stride, L, walk):
+    for name, n in data_layout(stride, L, walk, acc):
         parts[name] = d[o : o + n]
         o += n
     Cbar = ca.reshape(parts["Cbar"], 3, 3)
     q_k = quat_exp(phi_k)
     n_k = rotate_inverse(q_k, ca.mtimes(Cbar.T, m_i))  # C_i^m(tau_k) m^i
+    if acc:
+        A, b, u_i, g_acc = unpack_accelerometer(theta, g)
+        up_k = rotate_inverse(q_k, ca.mtimes(Cbar.T, u_i))   # C_i^m(t_k) u^i
+        acc_mean = ca.SX.zeros(3)
     Q = ca.DM([1, 0, 0, 0])
     res = []
     for i in range(stride):
+        if acc:   # the specific force against gravity at the segment start, weighted into the interval's mean
+            f_m = ca.mtimes(A, parts["yacc"][3 * i : 3 * i + 3]) + b
+            acc_mean += parts["cacc"][i] * (f_m - g_acc * rotate_inverse(Q, up_k))
         v = rotate_inverse(Q, n_k)  # C_i^m(t_j) m^i at the stamp; then back by the time offset
         w_mid = ca.mtimes(K, parts["ymid"][3 * i : 3 * i + 3]) + eps
         v = rotate_inverse(quat_conj(quat_exp(tau * w_mid)), v)
@@ -144,6 +187,11 @@ def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool =
     res.append(ca.mtimes(Winv, 2.0 * qE[0] * qE[1:]) * parts["w_int"])
     if walk:
         res.append((s_k1[3:6] - s_k[3:6]) * parts["w_walk"])
+    if acc:
+        res.append(acc_mean * parts["w_acc"])
+        up_k1 = rotate_inverse(quat_exp(phi_k1), rotate_inverse(parts["qD"], ca.mtimes(Cbar.T, u_i)))   # at node k+1
+        rest = lambda y, up: ca.mtimes(A, y) + b - g_acc * up
+        res.append(rest(parts["yrest0"], up_k) * parts["wrest0"] + rest(parts["yrest1"], up_k1) * parts["wrest1"])
     return ca.vertcat(*res)
 
 
@@ -157,9 +205,10 @@ def interval_kernels(stride: int, L: int, n_theta: int, walk: bool = False):
     th = ca.SX.sym("theta", n_theta)
     pk = ca.SX.sym("s_k", node_size(walk))
     pk1 = ca.SX.sym("s_k1", node_size(walk))
-    g = ca.SX.sym("g", sum(k for _, k in GLOBAL_LAYOUT))
-    d = ca.SX.sym("d", sum(k for _, k in data_layout(stride, L, walk)))
-    r = interval_residuals(th, pk, pk1, g, d, stride, L, walk)
+    acc = has_accelerometer(n_theta)
+    g = ca.SX.sym("g", global_size(acc))
+    d = ca.SX.sym("d", sum(k for _, k in data_layout(stride, L, walk, acc)))
+    r = interval_residuals(th, pk, pk1, g, d, stride, L, walk, acc)
     JthT = ca.jacobian(r, th).T
     Jk = ca.jacobian(r, pk)
     Jk1 = ca.jacobian(r, pk1)

@@ -42,8 +42,8 @@ import numpy as np
 
 from magyro import so3
 from magyro.nls.grid import Grid, gyro_at_mag_midpoints
-from magyro.nls.interval import (GLOBAL_LAYOUT, N_GLOBAL, NO_HUBER, data_layout, kernel_key, kernel_set, node_size,
-                                 unpack_globals)
+from magyro.nls.interval import (ACC_GLOBAL_LAYOUT, GLOBAL_LAYOUT, N_ACC_THETA, N_GLOBAL, NO_HUBER, data_layout,
+                                 global_size, kernel_key, kernel_set, node_size, unpack_accelerometer, unpack_globals)
 
 HOLE_LINK_STD_RAD = 0.1   # across a hole in the gyro record the attitudes are linked this loosely (a gauge only)
 
@@ -61,6 +61,7 @@ class Linearisation:
     C_m_i_nominal: np.ndarray  # (N, 3, 3), node 0 = I
     field_scale: float         # typical |R^-1|, scales dh
     time_offset_s: float = 0.0  # magnetometer lag to start from
+    accelerometer: object = None   # `magyro.nls.accelerometer.AccelerometerStart` when the accelerometer joins
 
 
 
@@ -76,19 +77,21 @@ class JointProblem:
     """
 
     def __init__(self, grid: Grid, compiled: bool = True, estimate_time_offset: bool = True, huber: float | None = None,
-                 walk_density: float | None = None):
+                 walk_density: float | None = None, accelerometer: bool = False):
         self.grid = grid
         self.walk_density = walk_density
         self.huber = huber
         self.walk = walk = walk_density is not None
+        self.accelerometer = acc = accelerometer
+        self.estimate_time_offset = estimate_time_offset
         self.B = node_size(walk)
-        self.n_theta = N_GLOBAL + (1 if estimate_time_offset else 0)
+        self.n_theta = N_GLOBAL + (1 if estimate_time_offset else 0) + (N_ACC_THETA if acc else 0)
         n, s, L = grid.nodes, grid.stride, grid.substeps
         self.n_int = n - 1
-        self.n_glob_p = sum(k for _, k in GLOBAL_LAYOUT)
-        self.n_data = sum(k for _, k in data_layout(s, L, walk))
+        self.n_glob_p = global_size(acc)
+        self.n_data = sum(k for _, k in data_layout(s, L, walk, acc))
         self.n_x = self.n_theta + self.B * self.n_int
-        self.n_res_per_interval = 3 * s + 3 + (3 if walk else 0)
+        self.n_res_per_interval = 3 * s + 3 + (3 if walk else 0) + (6 if acc else 0)
 
         self.kernel_key = kernel_key(s, L, self.n_theta, walk)
         self.residual_kernel, self.gradient_kernel, self.gn_kernel = kernel_set(s, L, self.n_theta, walk, compiled)
@@ -98,6 +101,8 @@ class JointProblem:
         self.physical_function = ca.Function(
             "physical", [th, g], [S, h, K, eps, m_i, tau], ["theta", "g"], ["S", "h", "K", "eps", "m_i", "tau"]
         )
+        self.accelerometer_function = ca.Function("accelerometer", [th, g], list(unpack_accelerometer(th, g)),
+                                                  ["theta", "g"], ["A", "b", "u_i", "g_m_s2"]) if acc else None
         self._solver = None
 
     # ------------------------------------------------------------------ MX graph
@@ -175,7 +180,7 @@ class JointProblem:
 
     # ---------------------------------------------------------------- numbers in
     def parameters(self, lin: Linearisation, y_mag, sigma_mag: float, sigma_gyro_density: float,
-                   t_gyro_s=None, gyro_rad_s=None, t_mag_s=None, tau0_s: float = 0.0) -> np.ndarray:
+                   t_gyro_s=None, gyro_rad_s=None, t_mag_s=None, tau0_s: float = 0.0, acc_weight=None) -> np.ndarray:
         """Flat parameter vector: the linearisation, the weights and the data on the grid.
 
         With a time offset tau0 the raw gyro at each magnetometer stamp minus
@@ -190,7 +195,12 @@ class JointProblem:
             "Winv": np.linalg.inv(Lchol) / sigma_gyro_density, "w_mag": np.array([1.0 / sigma_mag]),
             "tau0": np.array([tau0_s]), "huber": np.array([NO_HUBER if self.huber is None else self.huber]),
         }
-        gvec = np.concatenate([np.asarray(glob[k], float).reshape(-1, order="F") for k, _ in GLOBAL_LAYOUT])
+        layout = GLOBAL_LAYOUT
+        if self.accelerometer:   # the accelerometer's start and its weights (nls/accelerometer.py)
+            start = lin.accelerometer
+            glob.update(start.globals())
+            layout = GLOBAL_LAYOUT + ACC_GLOBAL_LAYOUT
+        gvec = np.concatenate([np.asarray(glob[k], float).reshape(-1, order="F") for k, _ in layout])
         C = lin.C_m_i_nominal
         D = np.einsum("kji,kjl->kil", C[:-1], C[1:])
         n_int, s, L = self.n_int, g_.stride, g_.substeps
@@ -207,7 +217,9 @@ class JointProblem:
         }
         if self.walk:   # eta is in field_scale units
             cols["w_walk"] = (lin.field_scale / (self.walk_density * np.sqrt(g_.interval_s)))[:, None]
-        data = np.concatenate([cols[k] for k, _ in data_layout(s, L, self.walk)], axis=1)  # n_int x n_data
+        if self.accelerometer:
+            cols.update(start.columns(acc_weight))
+        data = np.concatenate([cols[k] for k, _ in data_layout(s, L, self.walk, self.accelerometer)], axis=1)
         return np.concatenate([gvec, data.reshape(-1)])
 
     # ----------------------------------------------------------------- the solve

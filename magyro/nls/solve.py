@@ -23,6 +23,7 @@ from magyro.nls.grid import STRIDES, Grid, build_grid, typical_segment_s
 from magyro.nls.method import NLS
 from magyro.options import Options
 from magyro.observability.gate import unexcited_directions
+from magyro.nls.accelerometer import accelerometer_start, hand_weights
 from magyro.nls.interval import N_GLOBAL, TIME_OFFSET_SCALE_S
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.errors import InputError, ObservabilityError
@@ -127,7 +128,15 @@ def linearise(prep: Prepared, grid: Grid, options: Options, search_lag: bool = T
     C, m0 = aligned_stretches(C_nodes, stretch, in_hole, prep.field_m[grid.node_mag_index], grid.node_on_sample,
                               grid.t_node_s)
     S0 = np.linalg.inv(prep.fit.R)
-    return Linearisation(S0, prep.fit.h, lin0.K, lin0.eps, m0, C, float(np.mean(np.diag(S0))), lin0.time_offset_s)
+    acc = None
+    if options.accelerometer:
+        if s.acc_m_s2 is None or len(s.acc_m_s2) < 2:
+            raise InputError("--accelerometer: the session has no accelerometer (columns ax ay az, m/s^2); import it "
+                             "with its accelerometer, or solve without --accelerometer")
+        acc = accelerometer_start(prep.untrimmed or s, s, grid, C, lin0.K, prep.rests.segments_s if prep.rests else [],
+                                  options.gravity_m_s2)
+    return Linearisation(S0, prep.fit.h, lin0.K, lin0.eps, m0, C, float(np.mean(np.diag(S0))), lin0.time_offset_s,
+                         acc)
 
 
 def check_axis_mapping(K0: np.ndarray, prep: Prepared) -> None:
@@ -152,17 +161,17 @@ def build_problem(prep: Prepared, options: Options, method: NLS,
     grid = build_grid(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, method.stride or default_stride(s))
     lin = linearise(prep, grid, options, search_lag)
     problem = JointProblem(grid, compiled=method.compiled, estimate_time_offset=options.estimate_time_offset,
-                           huber=method.huber, walk_density=method.hard_iron_walk)
+                           huber=method.huber, walk_density=method.hard_iron_walk, accelerometer=options.accelerometer)
     return grid, lin, problem
 
 
 def problem_parameters(problem: JointProblem, prep: Prepared, lin: Linearisation, sigma_mag: float, tau0_s: float,
-                       gyro_density: float | None = None) -> np.ndarray:
+                       gyro_density: float | None = None, acc_weight=None) -> np.ndarray:
     """The problem's parameter vector: linearisation point, noise weights (the gyro's `prep.gyro_density` unless
-    given) and the session's data."""
+    given; the accelerometer's intervals `lin.accelerometer.weight` unless given) and the session's data."""
     s = prep.session
     density = prep.gyro_density if gyro_density is None else gyro_density
-    return problem.parameters(lin, s.mag, sigma_mag, density, s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, tau0_s)
+    return problem.parameters(lin, s.mag, sigma_mag, density, s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, tau0_s, acc_weight)
 
 
 def magnetometer_noise_factor(problem: JointProblem, residuals: np.ndarray) -> float:
@@ -190,6 +199,25 @@ def gyro_residuals(r: np.ndarray, stride: int) -> np.ndarray:
     return r[:, 3 * stride : 3 * stride + 3]
 
 
+def accelerometer_residuals(problem: JointProblem, r: np.ndarray) -> np.ndarray:
+    """The accelerometer's weighted interval means, (n_int, 3): the columns after the gyro's (and the walk's)."""
+    first = 3 * problem.grid.stride + 3 + (3 if problem.walk else 0)
+    return r[:, first : first + 3]
+
+
+ACC_REWEIGHT_TOLERANCE = 0.1   # re-solve when the accelerometer's weights moved by more than this (RMS of log)
+
+
+def accelerometer_reweighted(problem: JointProblem, lin: Linearisation, r: np.ndarray, weight: np.ndarray):
+    """(the accelerometer's interval weights measured from the solved residuals r, whether they moved)."""
+    used = weight > 0
+    e = np.where(used[:, None], accelerometer_residuals(problem, r) / np.where(used, weight, 1.0)[:, None], 0.0)
+    new = hand_weights(e, lin.accelerometer)
+    ok = used & (new > 0)
+    moved = float(np.sqrt(np.mean(np.log(new[ok] / weight[ok]) ** 2))) if ok.any() else 0.0
+    return new, moved > ACC_REWEIGHT_TOLERANCE
+
+
 @dataclass
 class Solution:
     """The solver's point, the parameters it was solved with, and how it got there."""
@@ -206,6 +234,7 @@ class Solution:
     gyro_density: float | None = None      # the gyro level p was weighted with (prep's unless estimated)
     variance: object = None                # the last `variance.VarianceComponents` step, when the levels were estimated
     levels_settled: bool = True            # False: the estimated levels still moved on the last pass
+    acc_weight: np.ndarray | None = None   # the accelerometer's interval weights p was made with
 
 
 VARIANCE_TOLERANCE = 0.05   # estimated levels are settled when the last step moved each by less than this
@@ -222,12 +251,13 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
     `variance_step(x, r, sigma_mag, density, tau0_s)` returns the step's factors on the two levels."""
     solver = problem.solver({"ipopt.max_iter": method.max_iter})
     sigma_mag, density, tau0 = prep.sigma_mag, prep.gyro_density, lin.time_offset_s
+    acc_weight = None if lin.accelerometer is None else lin.accelerometer.weight
     estimating = variance_step is not None
     max_passes = MAX_VARIANCE_PASSES if estimating else MAX_PASSES
     x = np.zeros(problem.n_x)
     seconds, iterations, step = 0.0, 0, None
     for n_pass in range(1, max_passes + 1):
-        p = problem_parameters(problem, prep, lin, sigma_mag, tau0, density)
+        p = problem_parameters(problem, prep, lin, sigma_mag, tau0, density, acc_weight)
         p_dm = ca.DM(p)   # one numpy -> DM conversion for the solver and the residuals (8.5M numbers at 360k samples)
         t0 = time.perf_counter()
         x = np.array(solver(x0=x, p=p_dm)["x"]).ravel()
@@ -236,7 +266,7 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
         iterations += int(stats["iter_count"])
         stats["iter_count"] = iterations
         tau = float(problem.physical_function(x[: problem.n_theta], p[: problem.n_glob_p])[5].full().item())
-        r = residual_matrix(problem, x, p_dm) if (method.reweight_noise or estimating) else None
+        r = residual_matrix(problem, x, p_dm) if (method.reweight_noise or estimating or problem.accelerometer) else None
         if estimating:
             step = variance_step(x, r, sigma_mag, density, tau0)
             gyro_factor, mag_factor = step.gyro_factor, step.mag_factor
@@ -245,9 +275,14 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
             gyro_factor, mag_factor = 1.0, (1.0 if r is None else magnetometer_noise_factor(problem, r))
             reweight = abs(mag_factor - 1.0) > NOISE_RESCALE_TOLERANCE
         moved = abs(tau - tau0) * max(abs(tau), abs(tau0)) > TIME_OFFSET_RELOOK_S2
-        if n_pass == max_passes or not (moved or reweight):
-            return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, p_dm, r, density, step, not reweight)
-        if moved and problem.n_theta > N_GLOBAL:
+        new_acc, acc_moved = (accelerometer_reweighted(problem, lin, r, acc_weight) if problem.accelerometer
+                              else (None, False))
+        if n_pass == max_passes or not (moved or reweight or acc_moved):
+            return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, p_dm, r, density, step, not reweight,
+                            acc_weight)
+        if acc_moved:
+            acc_weight = new_acc
+        if moved and problem.estimate_time_offset:
             x[N_GLOBAL] += (tau0 - tau) / TIME_OFFSET_SCALE_S  # same tau, now about the new tau0
             tau0 = tau
         if reweight:

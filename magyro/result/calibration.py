@@ -11,6 +11,7 @@ from magyro import so3
 from magyro.errors import InputError
 from magyro.front.ellipsoid import calibrated_field
 from magyro.front.findings import RecordingCheck
+from magyro.result.accelerometer import AccelerometerCalibration
 from magyro.result.consistency_record import SplitCheck
 from magyro.result.fit import FilterFit, LeastSquaresFit, fit_from_dict
 from magyro.result.trajectory import AttitudeTrajectory
@@ -60,6 +61,7 @@ class Calibration:
     recording: RecordingCheck | None = None   # the recording check and what it repaired (magyro.calibrate)
     trajectory: AttitudeTrajectory | None = None   # the least squares' attitudes, when asked for (not in the JSON)
     std_white: Std | None = None   # the least squares' std from the white-noise weights alone (`std` adds the room)
+    accelerometer: AccelerometerCalibration | None = None   # when the accelerometer joined the least squares
 
     @property
     def bias_deg_s(self) -> np.ndarray:
@@ -117,7 +119,9 @@ class Calibration:
             "field_i": as_list(self.field_i),
             "time_offset_s": float(self.time_offset_s),
             "time_offset_estimated": self.time_offset_estimated,
-            "std": self.std.to_dict(),
+            **({"accelerometer": self.accelerometer.to_dict()} if self.accelerometer is not None else {}),
+            "std": {**self.std.to_dict(),
+                    **({"accelerometer": self.accelerometer.std_dict()} if self.accelerometer is not None else {})},
             **({"std_white": self.std_white.to_dict()} if self.std_white is not None else {}),
             "rests": None if self.rests is None else self.rests.to_dict(),
             "warnings": list(self.warnings),
@@ -157,6 +161,8 @@ class Calibration:
         h, sh = self.h, s.h
         lines.append(f"magnetometer h ({self.mag_unit})  " + "  ".join(f"{h[i]:+.4g} +/- {sh[i]:.2g}" for i in range(3)))
         lines.append("magnetometer R diagonal  " + "  ".join(f"{self.R[i, i]:.5g} +/- {s.R[i][i]:.2g}" for i in range(3)))
+        if self.accelerometer is not None:
+            lines.extend(self.accelerometer.table_lines())
         if self.time_offset_estimated:
             lines.append(f"magnetometer lag behind the gyro (ms, negative: it leads)  {1e3 * self.time_offset_s:+.2f} +/- "
                          f"{1e3 * s.time_offset_s:.2f}")
@@ -194,7 +200,7 @@ TOP_LEVEL = {"schema": (str,), "units": (dict, None), "gyro": (dict,), "misalign
              "magnetometer": (dict,), "field_i": (list,), "time_offset_s": (int, float), "time_offset_estimated": (bool,),
              "std": (dict, None), "std_white": (dict, None), "rests": (dict, None), "warnings": (list,),
              "observability": (dict,), "solver": (dict,), "noise": (dict, None), "fit": (dict, None),
-             "consistency": (dict, None), "recording": (dict, None)}
+             "consistency": (dict, None), "recording": (dict, None), "accelerometer": (dict, None)}
 TYPE_NAMES = {str: "a string", dict: "an object", list: "a list", bool: "true or false", int: "a number",
               float: "a number", None: "null"}
 
@@ -291,4 +297,6 @@ def _calibration_from_checked(data: dict) -> Calibration:
         consistency=None if consistency is None else SplitCheck.from_dict(consistency),
         recording=None if data.get("recording") is None else RecordingCheck.from_dict(data["recording"]),
         std_white=None if data.get("std_white") is None else Std.from_dict(data["std_white"], "std_white"),
+        accelerometer=None if data.get("accelerometer") is None else AccelerometerCalibration.from_dict(
+            data["accelerometer"], (std or {}).get("accelerometer")),
     )

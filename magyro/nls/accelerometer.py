@@ -1,0 +1,221 @@
+"""The accelerometer in the joint least squares: its data on the grid, its start, its weights, what it reports.
+
+Model (docs/spec.md section 1): the accelerometer reads y_a with f^a = K_a y_a + eps_a in its own frame a
+(K_a upper triangular, eps_a in m/s^2) and f^a = C_b_a f^b. In the problem's frame m
+
+    f^m = A y_a + b,   A = C_a^m K_a,   b = C_a^m eps_a,   C_a^m = C_b^m C_b_a^T
+
+and the specific force is the hand's acceleration plus gravity's reaction: f^m = C_i^m (a^i + g u^i), u^i the up
+direction in frame i (2 dof), g the local gravity (given). Two residuals per interval (interval.py):
+
+  * the interval's mean of A y_a + b - g C_i^m(t_j) u^i over its segment starts t_j, weighted by
+    1 / sqrt(sigma_w^2 / n + F s_h^2(t)): sigma_w the accelerometer's white noise per sample, s_h^2(t) the hand's
+    acceleration variance there (the residuals' mean square over a second, less the white part: zero at rest,
+    tenths of m/s^2 while a hand turns the device), F its long-run factor 1 + 2 sum rho_j (the hand's
+    acceleration is correlated over many intervals; Geyer's initial positive sequence of the residuals'
+    autocorrelation), so that a second of turning counts as the few independent samples it is;
+  * at the node on each rest at either end, the rest's mean accelerometer against gravity, weighted by the white
+    noise of that mean alone: still, the device's attitude is that node's, and the hand adds nothing.
+
+The weights come from the residuals at the start and are measured again from the solved residuals
+(`hand_weights`, called between IPOPT's passes).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from magyro import so3
+from magyro.front.differences import white_noise_std
+from magyro.nls.grid import Grid
+from magyro.result.reported import qr_split
+from magyro.session import HOLE_FACTOR
+
+STANDARD_GRAVITY_M_S2 = 9.80665
+HAND_WINDOW_S = 1.0          # the hand's acceleration variance is measured over this window
+
+
+@dataclass
+class AccelerometerStart:
+    """The accelerometer's data on the grid, its linearisation point and its white noise."""
+
+    y: np.ndarray              # (n_int, stride, 3) raw accelerometer at each segment start
+    share: np.ndarray          # (n_int, stride) weight of each segment start in its interval's mean (rows sum to 1 or 0)
+    count: np.ndarray          # (n_int,) samples in each interval's mean
+    rest_start: np.ndarray | None   # (mean raw accelerometer of the rest at the first node, its samples) or None
+    rest_end: np.ndarray | None
+    rest_start_n: int
+    rest_end_n: int
+    A0: np.ndarray
+    b0: np.ndarray
+    u0_i: np.ndarray           # unit up direction in frame i
+    g_m_s2: float
+    sigma_white_m_s2: float    # the accelerometer's white noise per sample (RMS over the axes)
+    interval_s: np.ndarray     # (n_int,)
+    weight: np.ndarray         # (n_int,) the interval means' weights at the start
+
+    def globals(self) -> dict:
+        return {"A0": self.A0, "b0": self.b0, "u0": self.u0_i, "Bu": so3.tangent_basis(self.u0_i),
+                "g_acc": np.array([self.g_m_s2])}
+
+    def columns(self, weight=None) -> dict:
+        """The per-interval data of the kernels (interval.data_layout, accelerometer part)."""
+        n = len(self.count)
+        w = self.weight if weight is None else weight
+        rest0, rest1 = np.zeros((n, 3)), np.zeros((n, 3))
+        w0, w1 = np.zeros((n, 1)), np.zeros((n, 1))
+        if self.rest_start is not None:
+            rest0[0], w0[0] = self.rest_start, 1.0 / (self.sigma_white_m_s2 / np.sqrt(self.rest_start_n))
+        if self.rest_end is not None:
+            rest1[-1], w1[-1] = self.rest_end, 1.0 / (self.sigma_white_m_s2 / np.sqrt(self.rest_end_n))
+        return {"yacc": self.y.reshape(n, -1), "cacc": self.share, "w_acc": np.asarray(w, float)[:, None],
+                "yrest0": rest0, "wrest0": w0, "yrest1": rest1, "wrest1": w1}
+
+
+def segment_start_times(grid: Grid) -> np.ndarray:
+    """(n_int, stride) times of every segment start."""
+    seg_s = grid.dt_s.sum(axis=2)
+    return grid.t_node_s[:-1, None] + np.cumsum(seg_s, axis=1) - seg_s
+
+
+def samples_at(t_s: np.ndarray, values: np.ndarray, at_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(values interpolated at `at_s`, True where a sample is near: inside the record and no hole)."""
+    flat = at_s.reshape(-1)
+    y = np.stack([np.interp(flat, t_s, values[:, i]) for i in range(3)], axis=-1)
+    dt = float(np.median(np.diff(t_s)))
+    k = np.clip(np.searchsorted(t_s, flat), 1, len(t_s) - 1)
+    nearest = np.minimum(np.abs(flat - t_s[k - 1]), np.abs(t_s[k] - flat))
+    ok = (flat >= t_s[0]) & (flat <= t_s[-1]) & (nearest <= HOLE_FACTOR * dt)
+    return y.reshape(at_s.shape + (3,)), ok.reshape(at_s.shape)
+
+
+def rest_mean(t_s: np.ndarray, acc: np.ndarray, segment: tuple[float, float] | None) -> tuple[np.ndarray | None, int]:
+    if segment is None:
+        return None, 0
+    keep = (t_s >= segment[0]) & (t_s <= segment[1])
+    return (acc[keep].mean(axis=0), int(keep.sum())) if keep.sum() >= 10 else (None, 0)
+
+
+def end_rests(full_session, t_node_s: np.ndarray, rest_segments) -> tuple:
+    """(the rest the first node sits in, the rest the last node sits in), each (start, end) s or None."""
+    first = next((seg for seg in rest_segments if seg[0] <= t_node_s[0] <= seg[1]), None)
+    last = next((seg for seg in rest_segments if seg[0] <= t_node_s[-1] <= seg[1]), None)
+    return first, (last if last is not first else None)
+
+
+def white_noise_m_s2(full_session, rest_segments) -> float:
+    """The accelerometer's white noise per sample, RMS over the axes: its spread at the rests, else its third
+    differences."""
+    t, a = full_session.t_acc_s, full_session.acc_m_s2
+    still = [a[(t >= s0) & (t <= s1)] for s0, s1 in rest_segments]
+    still = [x - x.mean(axis=0) for x in still if len(x) >= 10]
+    if still:
+        return float(np.sqrt(np.mean(np.concatenate(still) ** 2)))
+    return float(np.sqrt(np.mean(white_noise_std(a) ** 2)))
+
+
+def accelerometer_start(full_session, session, grid: Grid, C_m_i_nodes: np.ndarray, K0: np.ndarray,
+                        rest_segments, g_m_s2: float) -> AccelerometerStart:
+    """The accelerometer's data on the grid and its start: A0 = C_b^m (the accelerometer's axes taken as the
+    gyro's), b0 = 0, u^i from the first rest (or the first interval) read in that frame; weights from the
+    residuals there."""
+    y, ok = samples_at(session.t_acc_s, session.acc_m_s2, segment_start_times(grid))
+    count = ok.sum(axis=1)
+    share = np.where(count[:, None] > 0, ok / np.maximum(count, 1)[:, None], 0.0)
+    first, last = end_rests(full_session, grid.t_node_s, rest_segments)
+    rest0, n0 = rest_mean(full_session.t_acc_s, full_session.acc_m_s2, first)
+    rest1, n1 = rest_mean(full_session.t_acc_s, full_session.acc_m_s2, last)
+    A0 = qr_split(K0)[0]
+    at_node0 = rest0 if rest0 is not None else np.einsum("sj,sjk->k", share[:1], y[:1])
+    u0 = A0 @ at_node0
+    u0 = u0 / np.linalg.norm(u0)
+    sigma = white_noise_m_s2(full_session, rest_segments)
+    start = AccelerometerStart(y, share, count, rest0, rest1, n0, n1, A0, np.zeros(3), u0, float(g_m_s2), sigma,
+                               grid.interval_s, np.zeros(len(count)))
+    e = interval_residuals(start, start.A0, start.b0, start.u0_i, C_m_i_nodes)
+    start.weight = hand_weights(e, start)
+    return start
+
+
+def interval_residuals(start: AccelerometerStart, A, b, u_i, C_m_i_nodes) -> np.ndarray:
+    """(n_int, 3) unweighted interval means of A y + b - g C_i^m u^i, the attitude taken at each interval's first node
+    (what the start needs; the solve's own residuals turn with the gyro inside the interval)."""
+    f = np.einsum("ij,ksj->ksi", A, start.y) + b
+    mean_f = np.einsum("ks,ksi->ki", start.share, f)
+    up = np.einsum("kji,j->ki", C_m_i_nodes[:-1], u_i)
+    return np.where(start.count[:, None] > 0, mean_f - start.g_m_s2 * up, 0.0)
+
+
+def hand_weights(e: np.ndarray, start: AccelerometerStart) -> np.ndarray:
+    """(n_int,) weights 1 / sqrt(sigma_w^2 / n + F s_h^2) of the interval means from their unweighted residuals e."""
+    used = start.count > 0
+    white = start.sigma_white_m_s2 ** 2 / np.maximum(start.count, 1)
+    window = max(1, int(round(HAND_WINDOW_S / float(np.median(start.interval_s)))))
+    ms = np.where(used, np.sum(e**2, axis=1) / 3.0, 0.0)
+    kernel = np.ones(window)
+    local = np.convolve(ms, kernel, "same") / np.maximum(np.convolve(used.astype(float), kernel, "same"), 1.0)
+    hand = np.maximum(local - white, 0.0)
+    factor = long_run_factor(e[used] / np.sqrt(np.maximum(local[used], white[used]))[:, None])
+    return np.where(used, 1.0 / np.sqrt(white + factor * hand), 0.0)
+
+
+def long_run_factor(z: np.ndarray) -> float:
+    """1 + 2 sum_j rho_j of standardised residuals z (n, 3), the autocorrelations summed by Geyer's initial
+    positive sequence (pairs rho_2m + rho_2m+1 while positive), averaged over the axes."""
+    n = len(z)
+    if n < 8:
+        return 1.0
+    z = z - z.mean(axis=0)
+    spectrum = np.fft.rfft(z, 2 * n, axis=0)
+    acov = np.fft.irfft(np.abs(spectrum) ** 2, axis=0)[:n].mean(axis=1)
+    rho = acov / acov[0]
+    total = -1.0   # rho_0 counted twice in 2 * (rho_0 + rho_1 + ...): -1 + 2 sum = 1 + 2 sum_{j>=1}
+    for m in range(n // 2):
+        pair = rho[2 * m] + rho[2 * m + 1]
+        if pair <= 0:
+            break
+        total += 2.0 * pair
+    return float(max(total, 1.0))
+
+
+# ------------------------------------------------------------------------------------------ what it reports
+ACC_REPORTED = {"K_a": slice(0, 6), "bias_m_s2": slice(6, 9), "misalignment_deg": slice(9, 12)}
+UPPER = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+
+
+def accelerometer_parameters(A: np.ndarray, b: np.ndarray, C_b_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(K_a, eps_a in m/s^2, C_b_a) from f^m = A y + b and the gyro's C_b^m: A = C_a^m K_a (QR)."""
+    C_a_m, K_a = qr_split(A)
+    return K_a, C_a_m.T @ b, C_a_m.T @ C_b_m
+
+
+def reported_accelerometer(A, b, C_b_m, C_b_a_ref) -> np.ndarray:
+    """The accelerometer's reported vector (ACC_REPORTED): K_a's upper triangle, eps_a, and the misalignment's
+    rotation vector (deg) against C_b_a_ref."""
+    K_a, eps_a, C_b_a = accelerometer_parameters(A, b, C_b_m)
+    d = np.rad2deg(so3.log_so3(C_b_a_ref.T @ C_b_a))
+    return np.concatenate([[K_a[r, c] for r, c in UPPER], eps_a, d])
+
+
+def accelerometer_result(problem, theta: np.ndarray, g: np.ndarray, cov_theta: np.ndarray):
+    """The accelerometer's calibration at the solution, its std propagated from `cov_theta` (the corrections'
+    covariance) by central differences through the QR splits of A and K."""
+    from magyro.result.accelerometer import AccelerometerCalibration
+
+    def parts(th):
+        A, b, u, g_acc = (np.array(v) for v in problem.accelerometer_function(th, g))
+        C_b_m = qr_split(np.array(problem.physical_function(th, g)[2]))[0]
+        return A, b.ravel(), C_b_m, u.ravel(), float(g_acc.item())
+
+    A, b, C_b_m, u, g_acc = parts(theta)
+    K_a, eps_a, C_b_a = accelerometer_parameters(A, b, C_b_m)
+    f = lambda th: reported_accelerometer(*parts(th)[:3], C_b_a)
+    step, n = 1e-6, len(theta)
+    J = np.empty((12, n))
+    for i in range(n):
+        e = np.zeros(n)
+        e[i] = step
+        J[:, i] = (f(theta + e) - f(theta - e)) / (2 * step)
+    std = np.sqrt(np.maximum(np.diag(J @ cov_theta @ J.T), 0.0))
+    return AccelerometerCalibration.from_reported(K_a, eps_a, C_b_a, g_acc, u, std)
