@@ -48,11 +48,12 @@ def calibrate(session: Session, options: Options | None = None, method=None) -> 
 def calibrate_with_history(session: Session, options: Options | None = None, method=None):
     """(Calibration, the EKF's history or None): `calibrate`, keeping the filter's estimates over time when the
     method has them. The calibration is the same, number for number, as `calibrate`'s."""
-    from magyro.methods import run_method
+    from magyro.methods import check_method_options, run_method
     from magyro.progress import step
 
     options = options or Options()
     method = method or method_named("nls")
+    check_method_options(method, options)
     step("checking the recording")
     session, recording = checked_recording(session, options)
     plain = replace(options, split_check=False)

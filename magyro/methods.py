@@ -15,16 +15,21 @@ def run_method(method, session, options=None):
     """Calibrate `session` with `method`: an object with its own `calibrate(session, options)` (EKF) runs it; the
     least squares' knobs (NLS) run `magyro.nls.run.calibrate_nls` (returns a `magyro.Calibration`)."""
     own = getattr(method, "calibrate", None)
+    check_method_options(method, options)
     if own is not None:
-        if options is not None and options.accelerometer:
-            raise InputError("the accelerometer is calibrated by the least squares only (--method nls); the paper's "
-                             "EKF calibrates the gyro and the magnetometer")
         return own(session, options)
     if isinstance(method, NLS):
         from magyro.nls.run import calibrate_nls
 
         return calibrate_nls(session, options, method)
     raise InputError(f"{method!r} is not a calibration method; use magyro.NLS(...) or magyro.EKF(...)")
+
+
+def check_method_options(method, options) -> None:
+    """InputError (exit 2) for options the method cannot honour: the accelerometer is the least squares' only."""
+    if options is not None and options.accelerometer and not isinstance(method, NLS):
+        raise InputError("the accelerometer is calibrated by the least squares only (--method nls); the paper's "
+                         "EKF calibrates the gyro and the magnetometer")
 
 
 def calibrator(method):
