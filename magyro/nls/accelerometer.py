@@ -9,11 +9,10 @@ and the specific force is the hand's acceleration plus gravity's reaction: f^m =
 direction in frame i (2 dof), g the local gravity (given). Two residuals per interval (interval.py):
 
   * the interval's mean of A y_a + b - g C_i^m(t_j) u^i over its segment starts t_j, weighted by
-    1 / sqrt(sigma_w^2 / n + F s_h^2(t)): sigma_w the accelerometer's white noise per sample, s_h^2(t) the hand's
+    1 / sqrt(sigma_w^2 / n + s_h^2(t)): sigma_w the accelerometer's white noise per sample, s_h^2(t) the hand's
     acceleration variance there (the residuals' mean square over a second, less the white part: zero at rest,
-    tenths of m/s^2 while a hand turns the device), F its long-run factor 1 + 2 sum rho_j (the hand's
-    acceleration is correlated over many intervals; Geyer's initial positive sequence of the residuals'
-    autocorrelation), so that a second of turning counts as the few independent samples it is;
+    tenths of m/s^2 while a hand turns the device). The hand's acceleration lasts longer than an interval: the
+    std counts that correlation (nls/hand_motion.py);
   * at the node on each rest at either end, the rest's mean accelerometer against gravity, weighted by the white
     noise of that mean alone: still, the device's attitude is that node's, and the hand adds nothing.
 
@@ -34,6 +33,7 @@ from magyro.session import HOLE_FACTOR
 
 STANDARD_GRAVITY_M_S2 = 9.80665
 HAND_WINDOW_S = 1.0          # the hand's acceleration variance is measured over this window
+HAND_MAX_LAG_S = 30.0        # its autocorrelation is measured up to this lag (a hand's slowest sway)
 
 
 @dataclass
@@ -54,6 +54,7 @@ class AccelerometerStart:
     sigma_white_m_s2: float    # the accelerometer's white noise per sample (RMS over the axes)
     interval_s: np.ndarray     # (n_int,)
     weight: np.ndarray         # (n_int,) the interval means' weights at the start
+    angular_acceleration: np.ndarray | None = None   # (n_int, 3) rad/s^2 from the raw gyro, per interval
 
     def globals(self) -> dict:
         return {"A0": self.A0, "b0": self.b0, "u0": self.u0_i, "Bu": so3.tangent_basis(self.u0_i),
@@ -77,6 +78,12 @@ def segment_start_times(grid: Grid) -> np.ndarray:
     """(n_int, stride) times of every segment start."""
     seg_s = grid.dt_s.sum(axis=2)
     return grid.t_node_s[:-1, None] + np.cumsum(seg_s, axis=1) - seg_s
+
+
+def angular_acceleration(grid: Grid) -> np.ndarray:
+    """(n_int, 3) the raw gyro's change over each interval over its length, rad/s^2."""
+    rate = np.vstack([grid.gyro_a[:, 0, 0], grid.gyro_b[-1:, -1, -1]])   # at the nodes
+    return np.diff(rate, axis=0) / grid.interval_s[:, None]
 
 
 def samples_at(t_s: np.ndarray, values: np.ndarray, at_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -132,51 +139,89 @@ def accelerometer_start(full_session, session, grid: Grid, C_m_i_nodes: np.ndarr
     u0 = u0 / np.linalg.norm(u0)
     sigma = white_noise_m_s2(full_session, rest_segments)
     start = AccelerometerStart(y, share, count, rest0, rest1, n0, n1, A0, np.zeros(3), u0, float(g_m_s2), sigma,
-                               grid.interval_s, np.zeros(len(count)))
-    e = interval_residuals(start, start.A0, start.b0, start.u0_i, C_m_i_nodes)
-    start.weight = hand_weights(e, start)
+                               grid.interval_s, np.zeros(len(count)), angular_acceleration(grid))
+    start.weight = hand_weights(start_residuals(start, C_m_i_nodes), start)
     return start
 
 
-def interval_residuals(start: AccelerometerStart, A, b, u_i, C_m_i_nodes) -> np.ndarray:
-    """(n_int, 3) unweighted interval means of A y + b - g C_i^m u^i, the attitude taken at each interval's first node
-    (what the start needs; the solve's own residuals turn with the gyro inside the interval)."""
-    f = np.einsum("ij,ksj->ksi", A, start.y) + b
+@dataclass(frozen=True)
+class HandMotion:
+    """What the accelerometer says of the hand: the interval means' weights (as solved), the hand's acceleration std
+    per interval (m/s^2, zero at rest) and its autocorrelation at lags of 0, 1, 2, ... intervals (Bartlett-tapered)."""
+
+    weight: np.ndarray
+    hand_std_m_s2: np.ndarray
+    correlation: np.ndarray
+
+
+def start_residuals(start: AccelerometerStart, C_m_i_nodes: np.ndarray) -> np.ndarray:
+    """(n_int, 3) unweighted interval means of A0 y + b0 - g C_i^m u^i at the start, the attitude taken at each
+    interval's first node (the solve's own residuals turn with the gyro inside the interval)."""
+    f = np.einsum("ij,ksj->ksi", start.A0, start.y) + start.b0
     mean_f = np.einsum("ks,ksi->ki", start.share, f)
-    up = np.einsum("kji,j->ki", C_m_i_nodes[:-1], u_i)
+    up = np.einsum("kji,j->ki", C_m_i_nodes[:-1], start.u0_i)
     return np.where(start.count[:, None] > 0, mean_f - start.g_m_s2 * up, 0.0)
 
 
 def hand_weights(e: np.ndarray, start: AccelerometerStart) -> np.ndarray:
-    """(n_int,) weights 1 / sqrt(sigma_w^2 / n + F s_h^2) of the interval means from their unweighted residuals e."""
+    """(n_int,) weights 1 / sqrt(sigma_w^2 / n + s_h^2) of the interval means from their unweighted residuals e
+    (n_int, 3): s_h^2(t) per axis the residuals' mean square over HAND_WINDOW_S less the white part."""
     used = start.count > 0
-    white = start.sigma_white_m_s2 ** 2 / np.maximum(start.count, 1)
+    white = white_variance(start)
     window = max(1, int(round(HAND_WINDOW_S / float(np.median(start.interval_s)))))
-    ms = np.where(used, np.sum(e**2, axis=1) / 3.0, 0.0)
+    local = local_mean_square(np.sqrt(np.sum(e**2, axis=1) / 3.0), used, window)
+    return np.where(used, 1.0 / np.sqrt(white + np.maximum(local - white, 0.0)), 0.0)
+
+
+def white_variance(start: AccelerometerStart) -> np.ndarray:
+    """(n_int,) the white noise's variance in each interval's mean, per axis, m^2/s^4."""
+    return start.sigma_white_m_s2 ** 2 / np.maximum(start.count, 1)
+
+
+def specific_force_excess(start: AccelerometerStart, A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n_int,) |mean of A y + b| - g over each interval (0 where it has no sample): the hand's acceleration along
+    gravity, which no attitude can explain away (a tilt turns the specific force, it does not change its size)."""
+    f = np.einsum("ij,ksj->ksi", A, start.y) + b
+    mean_f = np.einsum("ks,ksi->ki", start.share, f)
+    return np.where(start.count > 0, np.linalg.norm(mean_f, axis=1) - start.g_m_s2, 0.0)
+
+
+def local_mean_square(x: np.ndarray, used: np.ndarray, window: int) -> np.ndarray:
+    """(n,) the mean of x^2 (n,) over `window` intervals about each, counting the used ones only."""
     kernel = np.ones(window)
-    local = np.convolve(ms, kernel, "same") / np.maximum(np.convolve(used.astype(float), kernel, "same"), 1.0)
-    hand = np.maximum(local - white, 0.0)
-    factor = long_run_factor(e[used] / np.sqrt(np.maximum(local[used], white[used]))[:, None])
-    return np.where(used, 1.0 / np.sqrt(white + factor * hand), 0.0)
+    return np.convolve(np.where(used, x**2, 0.0), kernel, "same") / np.maximum(
+        np.convolve(used.astype(float), kernel, "same"), 1.0)
 
 
-def long_run_factor(z: np.ndarray) -> float:
-    """1 + 2 sum_j rho_j of standardised residuals z (n, 3), the autocorrelations summed by Geyer's initial
-    positive sequence (pairs rho_2m + rho_2m+1 while positive), averaged over the axes."""
+def hand_motion(excess: np.ndarray, weight: np.ndarray, start: AccelerometerStart) -> HandMotion:
+    """The hand's acceleration at the solution, from the specific force's size (`specific_force_excess`, n_int):
+    its variance per axis is the excess's mean square over HAND_WINDOW_S less the white part, the hand's
+    acceleration taken as isotropic (along gravity as across it). Not from the residuals: the attitudes absorb a
+    slow hand's acceleration across gravity into a tilt the gyro cannot refute, and the residuals say the hand
+    barely moved (2-3x too little on paper-table1-acc). Its autocorrelation is the turning's angular
+    acceleration's, from the raw gyro (`tapered_autocorrelation`): a hand moves the device as it turns it (the
+    device sits a hand's length from the wrist and the elbow), and nothing else says how slowly it sways."""
+    used = weight > 0
+    window = max(1, int(round(HAND_WINDOW_S / float(np.median(start.interval_s)))))
+    e = np.where(used, excess - (np.mean(excess[used]) if used.any() else 0.0), 0.0)  # less what g or a scale leaves
+    hand = np.where(used, np.maximum(local_mean_square(e, used, window) - white_variance(start), 0.0), 0.0)
+    max_lag = min(int(used.sum()) // 2, int(round(HAND_MAX_LAG_S / float(np.median(start.interval_s)))))
+    return HandMotion(weight, np.sqrt(hand), tapered_autocorrelation(start.angular_acceleration, max_lag, 1.0))
+
+
+def tapered_autocorrelation(z: np.ndarray, max_lag: int, hand_share: float) -> np.ndarray:
+    """rho_l (1 - l / (max_lag + 1)) for l = 0..max_lag: rho the hand's autocorrelation, the sample autocovariance
+    of the whitened residuals z (n, 3), averaged over the axes, over the hand's share of their variance (the white
+    noise has none past lag 0). A hand's acceleration is narrow-band (it sways at the frequencies it turns at),
+    which no exponential kernel describes; the Bartlett taper keeps the covariance positive semi-definite."""
     n = len(z)
-    if n < 8:
-        return 1.0
+    if n < 2 or max_lag < 1 or hand_share <= 0:
+        return np.ones(1)
     z = z - z.mean(axis=0)
-    spectrum = np.fft.rfft(z, 2 * n, axis=0)
-    acov = np.fft.irfft(np.abs(spectrum) ** 2, axis=0)[:n].mean(axis=1)
-    rho = acov / acov[0]
-    total = -1.0   # rho_0 counted twice in 2 * (rho_0 + rho_1 + ...): -1 + 2 sum = 1 + 2 sum_{j>=1}
-    for m in range(n // 2):
-        pair = rho[2 * m] + rho[2 * m + 1]
-        if pair <= 0:
-            break
-        total += 2.0 * pair
-    return float(max(total, 1.0))
+    acov = np.fft.irfft(np.abs(np.fft.rfft(z, 2 * n, axis=0)) ** 2, axis=0)[: max_lag + 1].mean(axis=1) / n
+    rho = np.clip(acov / (acov[0] * hand_share), -1.0, 1.0)
+    rho[0] = 1.0
+    return rho * (1.0 - np.arange(max_lag + 1) / (max_lag + 1))
 
 
 # ------------------------------------------------------------------------------------------ what it reports

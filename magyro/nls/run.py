@@ -25,6 +25,8 @@ from magyro.nls.information import information_std
 from magyro.nls.method import NLS
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.reduction import gauss_newton_decrement, reduce_hessian
+from magyro.nls.hand_motion import hand_covariance_term
+from magyro.nls.accelerometer import hand_motion, specific_force_excess, white_variance
 from magyro.nls.solve import build_problem, problem_parameters, solve_passes
 from magyro.nls.disturbance import disturbance_covariance
 from magyro.nls.variance import secant_factor, variance_components
@@ -67,11 +69,24 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     sol.stats["gauss_newton_decrement"] = decrement
     cov_theta, disturbance = disturbance_covariance(problem, sol.x, sol.p, reduced, solved_attitudes(problem, lin, sol.x),
                                                     prep.session)
+    if problem.accelerometer:
+        cov_theta = cov_theta + hand_term(problem, lin, sol, reduced)
     cal = assemble(problem, prep, grid, sol, reduced, method, time.perf_counter() - t_start, cov_theta, disturbance)
     cal.warnings.extend(gate_warnings or solved_accuracy_gate(cal, options))
     if method.trajectory:
         cal.trajectory = attitude_trajectory(problem, grid, lin, sol.x, reduced, prep.session, cal.R, cal.h, cov_theta)
     return cal
+
+
+def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.ndarray:
+    """What the hand's correlated acceleration adds to the corrections' covariance (`magyro.nls.hand_motion`), its
+    std and autocorrelation measured at the solution (`magyro.nls.accelerometer.hand_motion`)."""
+    A, b = (np.array(v) for v in problem.accelerometer_function(sol.x[: problem.n_theta], sol.p[: problem.n_glob_p])[:2])
+    start = lin.accelerometer
+    hand = hand_motion(specific_force_excess(start, A, b.ravel()), sol.acc_weight, start)
+    weights_hand = np.sqrt(np.maximum(1.0 / np.maximum(sol.acc_weight, 1e-300) ** 2 - white_variance(start), 0.0))
+    return hand_covariance_term(problem, sol.x, sol.p, reduced, np.linalg.inv(reduced.information), hand.hand_std_m_s2,
+                                weights_hand * (sol.acc_weight > 0), hand.correlation)
 
 
 def not_converged_message(sol, decrement: float) -> str:

@@ -208,12 +208,16 @@ def accelerometer_residuals(problem: JointProblem, r: np.ndarray) -> np.ndarray:
 ACC_REWEIGHT_TOLERANCE = 0.1   # re-solve when the accelerometer's weights moved by more than this (RMS of log)
 
 
+def solved_accelerometer_residuals(problem: JointProblem, r: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """(n_int, 3) the accelerometer's interval means' residuals, unweighted (m/s^2), from the residual matrix r."""
+    used = weight > 0
+    return np.where(used[:, None], accelerometer_residuals(problem, r) / np.where(used, weight, 1.0)[:, None], 0.0)
+
+
 def accelerometer_reweighted(problem: JointProblem, lin: Linearisation, r: np.ndarray, weight: np.ndarray):
     """(the accelerometer's interval weights measured from the solved residuals r, whether they moved)."""
-    used = weight > 0
-    e = np.where(used[:, None], accelerometer_residuals(problem, r) / np.where(used, weight, 1.0)[:, None], 0.0)
-    new = hand_weights(e, lin.accelerometer)
-    ok = used & (new > 0)
+    new = hand_weights(solved_accelerometer_residuals(problem, r, weight), lin.accelerometer)
+    ok = (weight > 0) & (new > 0)
     moved = float(np.sqrt(np.mean(np.log(new[ok] / weight[ok]) ** 2))) if ok.any() else 0.0
     return new, moved > ACC_REWEIGHT_TOLERANCE
 

@@ -1,0 +1,106 @@
+"""The std that counts the hand: its acceleration is correlated from one interval to the next.
+
+The accelerometer's interval means carry the hand's acceleration a(t), tenths of m/s^2 while a hand turns the
+device. Its variance is in their weights (nls/accelerometer.py), which counts every interval as independent; it
+is not: a hand sways at the frequencies it turns at. As for the room's field (nls/disturbance.py), the estimate is
+kept and its covariance is the sandwich
+
+    Cov = I^-1 + I^-1 Omega I^-1,   Omega = sum_{j, k} U_j rho(j - k) U_k^T - sum_j V_j V_j^T,
+
+U_j = Jt_j^T L_j, Jt_j the profiled Jacobian of interval j's accelerometer residual (its start node moved along
+with the calibration), L_j = w_j s_h(t_j) C_i^m(t_j) how a unit of the hand's acceleration in frame i enters it, and
+rho the hand's measured autocorrelation over intervals (`accelerometer.tapered_autocorrelation`), isotropic in
+frame i, of the local std s_h(t) measured (nls/accelerometer.py `hand_motion`); V_j is U_j with the std the
+weights hold, which I counts as independent already. At rest s_h is zero. The
+double sum is one product per frequency: Omega = Re sum_f S(f) F(f) F(f)^H / N, F the Fourier transform of U
+over the intervals and S that of rho, with N >= n + max lag so that no lag wraps around.
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from magyro import so3
+from magyro.nls.disturbance import ThetaRows
+from magyro.nls.interval import data_layout
+from magyro.nls.problem import JointProblem
+from magyro.nls.reduction import Reduced
+
+CHUNK = 1024   # intervals per piece of the sensitivities
+NODE_STEP = 1e-6
+
+
+def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, reduced: Reduced, info_inv: np.ndarray,
+                         hand_std_m_s2: np.ndarray, weights_hand_std_m_s2: np.ndarray,
+                         correlation: np.ndarray) -> np.ndarray:
+    """I^-1 (M - I_hand) I^-1: what the hand's correlated acceleration adds to the corrections' covariance.
+    `hand_std_m_s2` (n_int,) is s_h per interval as measured, `weights_hand_std_m_s2` the one the weights hold (I
+    counts it: it is taken out again), `correlation` rho at lags 0, 1, ... intervals."""
+    if not np.any(hand_std_m_s2 > 0) and not np.any(weights_hand_std_m_s2 > 0):
+        return np.zeros_like(info_inv)
+    sensitivities = np.concatenate(list(hand_sensitivities(problem, x, p, reduced, np.ones(problem.n_int))))
+    U = sensitivities * hand_std_m_s2[:, None, None]                                       # (n_int, n_theta, 3)
+    counted = sensitivities * weights_hand_std_m_s2[:, None, None]
+    n, L = len(U), len(correlation) - 1
+    size = 1 << int(np.ceil(np.log2(n + L + 1)))
+    kernel = np.zeros(size)
+    kernel[: L + 1] = correlation
+    kernel[size - L :] = correlation[1:][::-1]
+    S = np.fft.rfft(kernel).real                                  # symmetric kernel: a real spectrum
+    F = np.fft.rfft(U, size, axis=0)                              # (size/2 + 1, n_theta, 3)
+    weights = np.full(len(S), 2.0)
+    weights[0] = 1.0
+    if size % 2 == 0:
+        weights[-1] = 1.0
+    omega = np.einsum("f,fac,fbc->ab", S * weights, F, F.conj()).real / size
+    omega -= np.einsum("nac,nbc->ab", counted, counted)           # what I counts as independent
+    return info_inv @ omega @ info_inv
+
+
+def hand_sensitivities(problem: JointProblem, x, p, reduced: Reduced, hand_std_m_s2: np.ndarray):
+    """Pieces, in time order, of U_j (m, n_theta, 3) for every interval (zero where it carries no accelerometer
+    mean or the hand is still)."""
+    grid, B, G = problem.grid, problem.B, problem.n_theta
+    W = np.concatenate([np.zeros((1, B, G)), reduced.Dinv_Hpt.reshape(problem.n_int, B, -1)[:-1]])
+    first = 3 * grid.stride + 3 + (3 if problem.walk else 0)
+    columns = slice(first, first + 3)
+    rows_of = ThetaRows(problem, x, p)
+    weight = rows_of.data[:, data_offset(problem, "w_acc")]
+    for a in range(0, problem.n_int, CHUNK):
+        n = slice(a, min(a + CHUNK, problem.n_int))
+        J_profiled = rows_of(n, columns) - start_node_jacobian(problem, rows_of, n, columns) @ W[n]   # (m, 3, G)
+        L = (weight[n] * hand_std_m_s2[n])[:, None, None] * attitude_i_to_m(rows_of, n)             # (m, 3, 3)
+        yield np.swapaxes(J_profiled, -1, -2) @ L
+
+
+def data_offset(problem: JointProblem, name: str) -> int:
+    """Where the per-interval datum `name` starts in an interval's data (interval.data_layout)."""
+    o = 0
+    for entry, k in data_layout(problem.grid.stride, problem.grid.substeps, problem.walk, problem.accelerometer):
+        if entry == name:
+            return o
+        o += k
+    raise KeyError(name)
+
+
+def start_node_jacobian(problem: JointProblem, rows_of: ThetaRows, n: slice, columns: slice) -> np.ndarray:
+    """d r / d s_k of the interval residuals `columns` with respect to their start node's state, (m, 3, B), by
+    central differences of the residual kernel."""
+    m = n.stop - n.start
+    f = problem.residual_kernel.map(m)
+    s_k, s_k1 = rows_of.states[n].T, ca.DM(rows_of.states[n.start + 1 : n.stop + 1].T)
+    data = ca.DM(rows_of.data[n].T)
+    out = np.empty((m, columns.stop - columns.start, problem.B))
+    for b in range(problem.B):
+        step = np.zeros((problem.B, 1))
+        step[b] = NODE_STEP
+        plus = np.array(f(rows_of.theta, ca.DM(s_k + step), s_k1, rows_of.g, data))
+        minus = np.array(f(rows_of.theta, ca.DM(s_k - step), s_k1, rows_of.g, data))
+        out[:, :, b] = ((plus - minus) / (2 * NODE_STEP))[columns, :].T
+    return out
+
+
+def attitude_i_to_m(rows_of: ThetaRows, n: slice) -> np.ndarray:
+    """C_i^m at each interval's start node, (m, 3, 3): (Cbar Exp(phi))^T."""
+    Cbar = rows_of.data[n, :9].reshape(-1, 3, 3).transpose(0, 2, 1)   # column-major vec of each Cbar
+    return np.swapaxes(Cbar @ so3.exp_so3(rows_of.states[n, :3]), -1, -2)
