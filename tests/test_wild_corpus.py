@@ -21,7 +21,8 @@ if not WILD.is_dir():
 pytestmark = pytest.mark.skipif(not WILD.is_dir(), reason=f"the corpus of real recordings ({WILD}) is absent")
 
 IMPORTS = {   # name -> the `magyro import` arguments (the output added)
-    "fusion": ("csv", WILD / "fusion" / "sensor_data.csv", "--gyro-unit", "deg/s", "--mag-unit", "uT"),
+    "fusion": ("csv", WILD / "fusion" / "sensor_data.csv", "--gyro-unit", "deg/s", "--mag-unit", "uT",
+               "--acc-unit", "g"),   # its accelerometer is in g (taken for m/s^2 the check refuses it, exit 2)
     "simorxb": ("csv", WILD / "simorxb", "--preset", "sensor-logger"),
     "bennyjhui": ("csv", WILD / "bennyjhui", "--preset", "sensor-logger"),
     "phidgets-2013": ("rosbag", WILD / "imu_tools" / "imutools-2013-phidgets_imu_upside_down.bag"),

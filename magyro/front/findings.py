@@ -14,8 +14,9 @@ SCHEMA = "magyro.recording/1"
 SENSORS = ("gyro", "magnetometer")
 SEVERITIES = ("info", "warning", "error")
 # every kind of finding the check makes (magyro.front: recording, signals, repairs); acceptance limits name them
-KINDS = ("bursts", "clock_drift", "field", "field_anomaly", "gaps", "gyro_holes", "gyro_unit", "held", "jitter",
-         "normalised", "overlap", "samples", "saturation", "slow", "spikes", "stuck", "time_offset", "time_unit")
+KINDS = ("acc_unit", "bursts", "clock_drift", "field", "field_anomaly", "gaps", "gyro_holes", "gyro_unit", "held",
+         "jitter", "normalised", "overlap", "samples", "saturation", "slow", "spikes", "stuck", "time_offset",
+         "time_unit")
 GAP_PERIODS = HOLE_FACTOR         # an interval longer than this many periods is a gap: the solve's hole
 
 
@@ -24,7 +25,8 @@ class Finding:
     """One thing the recording gets wrong (or worth knowing), in plain words."""
 
     kind: str                     # time_unit, bursts, gaps, held, saturation, spikes, overlap, clock_drift,
-    sensor: str                   # time_offset, gyro_unit, jitter, gyro_holes; sensor: gyro | magnetometer | both
+    sensor: str                   # time_offset, gyro_unit, acc_unit, jitter, gyro_holes (KINDS);
+                                  # sensor: gyro | magnetometer | accelerometer | both
     message: str                  # what, with the numbers
     where_s: tuple = ()           # ((t0, t1), ...) session times
     severity: str = "warning"     # info | warning | error (error: unusable as it is, exit 2)

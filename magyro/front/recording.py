@@ -21,6 +21,9 @@ jitter and looks for:
                 solve's search;
 - `gyro_unit`   the gyro turning the field 57x too fast or too slow for what the
                 magnetometer sees (deg/s labelled rad/s, or the reverse);
+- `acc_unit`, accelerometer `saturation`  when the session has an accelerometer: gravity read
+                in g or mg labelled m/s^2 (error), plateaus at its range (warning)
+                (magyro.front.accelerometer_checks);
 - `jitter`      (info) host-made stamps; `samples` (error) too few to check;
                 `gyro_holes` (info, after repair) the spans an integration must not cross.
 
@@ -35,7 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from magyro.front import field_checks
+from magyro.front import accelerometer_checks, field_checks
 from magyro.front.findings import GAP_PERIODS, SEVERITIES, Finding, RecordingCheck, SensorStats, repairable
 from magyro.front.signals import field_turning_findings, saturation, spikes
 from magyro.session import Session
@@ -67,6 +70,7 @@ class Evidence:
     spikes: np.ndarray | None = None                # magnetometer rows that are spikes
     mag_saturated: np.ndarray | None = None         # magnetometer rows with an axis pinned at its range
     anomaly: np.ndarray | None = None               # magnetometer rows in a field anomaly
+    acc_saturated: np.ndarray | None = None         # accelerometer rows on a saturation plateau; None: none
 
 
 def check_recording(session: Session) -> RecordingCheck:
@@ -101,6 +105,8 @@ def inspect(session: Session) -> tuple[RecordingCheck, Evidence]:
     findings += found
     findings += magnetometer_findings(session, evidence, any(f.kind == "time_unit" for f in findings))
     findings += overlap_findings(stats)
+    evidence.acc_saturated, found = accelerometer_checks.accelerometer_findings(session)
+    findings += found
     t_g = evidence.restamped.get("gyro", session.t_gyro_s)
     t_m = evidence.restamped.get("magnetometer", session.t_mag_s)
     keep_m = ~evidence.held["magnetometer"] & ~evidence.spikes & ~evidence.mag_saturated & ~evidence.anomaly

@@ -1,6 +1,6 @@
-"""The recording check's look at the signals: gyro saturation, magnetometer spikes, and whether the gyro turns
-with the field (units both ways, the magnetometer's lag and its drift). `magyro.front.recording` puts the
-findings together.
+"""The recording check's look at the signals: gyro saturation (`plateaus`, the rule the accelerometer's shares),
+magnetometer spikes, and whether the gyro turns with the field (units both ways, the magnetometer's lag and its
+drift). `magyro.front.recording` puts the findings together.
 """
 from __future__ import annotations
 
@@ -27,31 +27,40 @@ SOLVE_LAG_SEARCH_S = 0.1          # the solve's time-offset search (README step 
 
 
 def saturation(t: np.ndarray, gyro: np.ndarray) -> tuple[np.ndarray, list]:
-    """(rows with an axis on a saturation plateau, findings): per axis and sign, at least SAT_MIN_SAMPLES
-    samples at exactly the extreme value, in SAT_MIN_RUNS separate runs, entered/left steeply, or held for
-    SAT_LONG_RUN samples in a row."""
+    """(rows with an axis on a saturation plateau, findings): `plateaus` beyond SAT_MIN_DEG_S."""
     cut = np.zeros(len(t), dtype=bool)
     findings = []
-    for axis, name in enumerate("xyz"):
-        x = gyro[:, axis]
+    for axis, sign, extreme, at, begin, end in plateaus(gyro, np.radians(SAT_MIN_DEG_S)):
+        cut |= at
+        findings.append(saturation_finding("xyz"[axis], sign, extreme, t, at, begin, end))
+    return cut, findings
+
+
+def plateaus(x: np.ndarray, minimum: float):
+    """The saturation plateaus of a sensor's samples x (N, 3), one (axis, sign, extreme, at, begin, end) per axis
+    and sign that has one: at least SAT_MIN_SAMPLES samples at exactly the extreme value (`at`, a mask), which
+    lies beyond `minimum` (in x's unit: below every full scale of the sensor, above what it reads at rest), in
+    SAT_MIN_RUNS separate runs, entered/left steeply, or held for SAT_LONG_RUN samples in a row; begin and end are
+    the runs' first and last indices. The gyro's rule (`saturation`), and the accelerometer's
+    (`magyro.front.accelerometer_checks`)."""
+    for axis in range(x.shape[1]):
+        col = x[:, axis]
         for sign in (1.0, -1.0):
-            extreme = float(np.max(sign * x))
-            if np.degrees(extreme) < SAT_MIN_DEG_S:
+            extreme = float(np.max(sign * col))
+            if extreme < minimum:
                 continue
-            at = sign * x >= extreme * (1 - 1e-9)
+            at = sign * col >= extreme * (1 - 1e-9)
             n_at = int(at.sum())
             if n_at < SAT_MIN_SAMPLES:
                 continue
             begin, end = (np.array(v, dtype=int) for v in zip(*runs_of_true(at)))
-            steps = np.concatenate([np.abs(x[begin[begin > 0]] - x[begin[begin > 0] - 1]),
-                                    np.abs(x[end[end < len(x) - 1] + 1] - x[end[end < len(x) - 1]])])
+            steps = np.concatenate([np.abs(col[begin[begin > 0]] - col[begin[begin > 0] - 1]),
+                                    np.abs(col[end[end < len(col) - 1] + 1] - col[end[end < len(col) - 1]])])
             steep = bool(len(steps) and steps.max() > SAT_STEEP_FRACTION * extreme)
             long_run = int(np.max(end - begin + 1)) >= SAT_LONG_RUN   # a smooth motion clipped flat for a while
             if len(begin) < SAT_MIN_RUNS and not steep and not long_run:
                 continue
-            cut |= at
-            findings.append(saturation_finding(name, sign, extreme, t, at, begin, end))
-    return cut, findings
+            yield axis, sign, extreme, at, begin, end
 
 
 def saturation_finding(name, sign, extreme, t, at, begin, end) -> Finding:

@@ -27,14 +27,13 @@ from magyro.io.checks import MAX_PLAUSIBLE_STEP_S, MIN_PLAUSIBLE_STEP_S, check_t
 from magyro.io.columns import ACC_COLUMNS, GYRO_COLUMNS, MAG_COLUMNS, OPTIONAL_GROUPS, QUAT_COLUMNS, TIME_COLUMN
 from magyro.io.csv_columns import (SENSOR_GROUPS, groups_in, resolved_column_map, sensor_file_columns)
 from magyro.io.csv_text import checked_read_options, read_csv_table
-from magyro.io.csv_units import (STANDARD_GRAVITY_M_S2, acc_factor, gyro_unit_label, mag_unit_label, time_factor,
-                                 time_unit_label)
+from magyro.io.csv_units import (ACC_UNITS, acc_factor, acc_unit_from_gravity, gyro_unit_label, mag_unit_label,
+                                 time_factor, time_unit_label)
 from magyro.session import Session
 
 MAX_ABS_READING = 1e9        # beyond any sensor reading in any unit accepted (nT, counts of a 24-bit ADC, mg)
 MAX_ABS_TIME = 1e19          # beyond an epoch stamp in ns (1.7e18 in 2024)
 ACC_AUTO = "auto"            # the accelerometer's unit told from gravity: g when |a| is near 1, m/s^2 near 9.8
-_GRAVITY_NEAR_G, _GRAVITY_NEAR_M_S2 = (0.5, 2.0), (4.9, 20.0)
 
 
 def import_csv(path, column_map: dict | None, gyro_unit: str, mag_unit: str,
@@ -165,10 +164,9 @@ def acc_scale_from_gravity(label, acc: pd.DataFrame) -> float:
     """m/s^2 per unit of an accelerometer that holds gravity: g when its median |a| is 0.5-2, m/s^2 when 4.9-20."""
     norm = np.linalg.norm(acc.dropna().to_numpy(), axis=1)
     median = float(np.median(norm)) if norm.size else float("nan")
-    if _GRAVITY_NEAR_G[0] <= median <= _GRAVITY_NEAR_G[1]:
-        return STANDARD_GRAVITY_M_S2
-    if _GRAVITY_NEAR_M_S2[0] <= median <= _GRAVITY_NEAR_M_S2[1]:
-        return 1.0
+    unit = acc_unit_from_gravity(median)
+    if unit in ("g", "m/s^2"):   # what the exports it serves use; auto takes no mg
+        return ACC_UNITS[unit]
     shown = f"{median:.4g}" if np.isfinite(median) else "not defined (no complete sample)"
     raise InputError(f"{label}: cannot tell the accelerometer's unit: its median |a| is {shown}, neither "
                      f"about 1 (g) nor about 9.8 (m/s^2); give the gyro and magnetometer files without it")

@@ -1,6 +1,7 @@
 """The units a CSV import accepts, by label: time, accelerometer and magnetometer (the gyro's are in `magyro.io.checks`).
 
-`time_factor`, `acc_factor`: seconds or m/s^2 per unit of the file; `mag_unit_label`: the
+`time_factor`, `acc_factor`: seconds or m/s^2 per unit of the file; `acc_unit_from_gravity`: the unit
+in which an accelerometer reads gravity as it does; `mag_unit_label`: the
 canonical label of a magnetometer unit (the readings keep their unit); `gyro_unit_label`:
 rad/s or deg/s. Each refuses an unknown label with the list of known ones.
 """
@@ -23,6 +24,9 @@ MAG_UNITS = {"ut": "uT", "µt": "uT", "μt": "uT", "microtesla": "uT", "nt": "nT
              "a.u.": "a.u.", "au": "a.u.", "arb": "a.u.", "unitless": "unitless", "1": "unitless",
              "unknown": "unknown"}
 STANDARD_GRAVITY_M_S2 = 9.80665
+# what an accelerometer that holds gravity reads as its median |a| in each unit: how `--acc-unit auto` and the
+# recording check (magyro.front.accelerometer_checks) tell the unit
+GRAVITY_READS = {"g": (0.5, 2.0), "m/s^2": (4.9, 20.0), "mg": (500.0, 2000.0)}
 
 
 def canonical_key(unit: str) -> str:
@@ -60,6 +64,11 @@ def time_factor(where, unit: str) -> float:
 
 def acc_factor(where, unit: str) -> float:
     return unit_factor(where, unit, ACC_UNITS, "accelerometer")
+
+
+def acc_unit_from_gravity(median_norm: float) -> str | None:
+    """The accelerometer unit (a key of GRAVITY_READS) in which gravity reads `median_norm`; None when in none."""
+    return next((unit for unit, (low, high) in GRAVITY_READS.items() if low <= median_norm <= high), None)
 
 
 def time_unit_label(factor: float) -> str:

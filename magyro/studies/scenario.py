@@ -14,6 +14,10 @@ model needs from the file's numbers (C_b^m, K = C_b^m K_g, R, the field m^w).
 The optional ``[spread]`` section (`Spread`) is the one-sigma spread of the sensor
 errors from device to device around the file's values; it changes nothing in
 `simulate`, and `magyro.studies.fleet.device_scenario` draws one device from it.
+
+The optional ``[accelerometer]`` section (`Accelerometer`, issue 26) adds an accelerometer
+sampled with the gyro: its errors (K_a, eps_a, C_b^a), its noise, the local gravity and how
+far the hand moves the device. A problem without it simulates exactly as before.
 """
 from __future__ import annotations
 
@@ -117,6 +121,42 @@ SPREAD_KEYS = ("scale_ppm", "nonorthogonality_deg", "bias_deg_s", "misalignment_
 SPREAD_MAX_RELATIVE = {"scale_ppm": 1e5, "soft_iron": 0.1}
 
 
+STANDARD_GRAVITY_M_S2 = 9.80665   # what 1 g (and so 1 ug of noise density) is, whatever the problem's local g
+
+
+@dataclass(frozen=True, eq=False)
+class Accelerometer:
+    """The ``[accelerometer]`` section: an accelerometer sampled at the gyro's times (docs/spec.md conventions).
+
+    It measures the specific force f = a - g_vec (at rest f^w = (0, 0, +g)) in its own frame a:
+    f^a = K_a y_a + eps_a, f^a = C_b^a f^b, so y_a = K_a^-1 (C_b^a C_w^b (a^w - g_vec) - eps_a) + n_a.
+    The device's position moves by about `hand_translation_m` per world axis (`magyro.studies.simulate`).
+    """
+
+    K_a: np.ndarray                      # (3, 3) upper triangular, positive diagonal (scale, non-orthogonality)
+    bias_m_s2: np.ndarray                # (3,) eps_a, accelerometer frame
+    misalignment_euler_deg: np.ndarray   # (3,) [roll, pitch, yaw] of C_b^a (gyro -> accelerometer)
+    noise_density_ug_sqrt_hz: float      # white noise density, micro-g per sqrt(Hz)
+    g_m_s2: float = STANDARD_GRAVITY_M_S2   # the local gravity's magnitude
+    hand_translation_m: float = 0.0      # peak of the device's position on each world axis (0: turned in place)
+
+    @property
+    def C_b_a(self) -> np.ndarray:
+        return so3.euler_to_dcm(self.misalignment_euler_deg)
+
+    @property
+    def noise_density_m_s2_sqrt_hz(self) -> float:
+        return 1e-6 * STANDARD_GRAVITY_M_S2 * self.noise_density_ug_sqrt_hz
+
+    def sample_std_m_s2(self, rate_hz: float) -> float:
+        """Per-sample std of n_a at `rate_hz`: density * sqrt(rate), as the gyro's."""
+        return self.noise_density_m_s2_sqrt_hz * math.sqrt(rate_hz)
+
+
+ACCELEROMETER_KEYS = {"K_a": True, "bias_m_s2": True, "misalignment_euler_deg": False,
+                      "noise_density_ug_sqrt_hz": True, "g_m_s2": False, "hand_translation_m": False}
+
+
 @dataclass(frozen=True, eq=False)
 class Scenario:
     """A complete simulated scenario; see problems/paper-table1.toml for the keys."""
@@ -140,6 +180,7 @@ class Scenario:
     motion: Motion
     source_path: str = ""
     spread: Spread = Spread()           # device-to-device spread of the errors ([spread]); none by default
+    accelerometer: Accelerometer | None = None   # the [accelerometer] section; None: no accelerometer
 
     @property
     def gyro_bias_rad_s(self) -> np.ndarray:
@@ -194,7 +235,10 @@ _SCHEMA: dict[str, dict[str, bool]] = {  # section -> key -> required
         "initial_euler_deg": False, "turns": False,
     },
     "spread": {k: False for k in SPREAD_KEYS},
+    "accelerometer": ACCELEROMETER_KEYS,
 }
+# sections a problem may leave out altogether (their required keys are required only when the section is there)
+OPTIONAL_SECTIONS = ("spread", "accelerometer")
 # informational sections: any keys, not read by the simulator (written by `magyro plan`); must be tables
 INFORMATIONAL_SECTIONS = ("plan",)
 # the [motion] keys that mean something for kind "turns" (the others are refused there, not silently ignored)
@@ -251,6 +295,8 @@ def parse_problem(raw: dict, source: str = "<dict>", default_name: str = "proble
         motion=_parse_motion(mo, where("motion")),
         source_path=source,
         spread=_parse_spread(sp, where("spread")),
+        accelerometer=_parse_accelerometer(raw["accelerometer"], where("accelerometer"))
+        if "accelerometer" in raw else None,
     )
     _check_consistency(problem, source)
     return problem
@@ -265,6 +311,8 @@ def _check_keys(raw: dict, source: str) -> None:
         if not isinstance(raw.get(section, {}), dict):
             raise InputError(f"{source}: [{section}] must be a table")
     for section, keys in _SCHEMA.items():
+        if section in OPTIONAL_SECTIONS and section not in raw:
+            continue
         table = raw.get(section, {})
         if not isinstance(table, dict):
             raise InputError(f"{source}: [{section}] must be a table")
@@ -371,6 +419,18 @@ def _parse_spread(sp: dict, where: str) -> Spread:
     return Spread(**values)
 
 
+def _parse_accelerometer(acc: dict, where: str) -> Accelerometer:
+    return Accelerometer(
+        K_a=_upper_triangular(acc["K_a"], where, "K_a"),
+        bias_m_s2=_vector3(acc["bias_m_s2"], where, "bias_m_s2"),
+        misalignment_euler_deg=_vector3(acc.get("misalignment_euler_deg", [0.0, 0.0, 0.0]), where,
+                                        "misalignment_euler_deg"),
+        noise_density_ug_sqrt_hz=_non_negative(acc["noise_density_ug_sqrt_hz"], where, "noise_density_ug_sqrt_hz"),
+        g_m_s2=_positive(acc.get("g_m_s2", STANDARD_GRAVITY_M_S2), where, "g_m_s2"),
+        hand_translation_m=_non_negative(acc.get("hand_translation_m", 0.0), where, "hand_translation_m"),
+    )
+
+
 def _check_consistency(problem: Scenario, source: str) -> None:
     m = problem.motion
     check_sizes(problem.duration_s, {"gyro": problem.gyro_rate_hz, "magnetometer": problem.mag_rate_hz},
@@ -379,7 +439,11 @@ def _check_consistency(problem: Scenario, source: str) -> None:
         raise InputError(f"{source} [magnetometer]: dip_deg must be within [-90, 90], got {problem.dip_deg}")
     if abs(problem.mag_time_offset_s) >= problem.duration_s:
         raise InputError(f"{source} [magnetometer]: |time_offset_s| must be smaller than the duration")
+    acc = problem.accelerometer
     if m.kind == "static":
+        if acc is not None and acc.hand_translation_m > 0:
+            raise InputError(f"{source} [accelerometer]: a \"static\" motion does not move: hand_translation_m must "
+                             f"be 0, got {acc.hand_translation_m:g}")
         return
     if m.kind == "turns":
         total = sum(step.seconds for step in m.turns)
