@@ -84,21 +84,24 @@ def test_specific_force_less_gravity_is_the_position_differentiated_twice(name):
 
 
 @pytest.mark.parametrize("name", ACC_PROBLEMS)
-def test_the_hand_moves_about_hand_translation_m_the_same_for_every_noise_seed(name):
+def test_the_hand_moves_about_hand_translation_m_another_sway_for_every_noise_seed(name):
+    """To the calibration the hand's sway is noise: each noise seed draws another sway of the same size (each axis's
+    peak hand_translation_m), about the same turning."""
     p = load_problem(name)
-    t = np.linspace(0.0, p.duration_s, 200_001)
-    peak = np.abs(truth_position(p, t)).max(axis=0)
-    np.testing.assert_allclose(peak, p.accelerometer.hand_translation_m, rtol=0.01)
-    clean = [simulate(p, seed, noise_scale=0.0)[0].acc_m_s2 for seed in (0, 7)]
-    np.testing.assert_array_equal(clean[0], clean[1])
-    np.testing.assert_array_equal(clean[0], acc_clean(p, simulate(p, 0)[0].t_acc_s))
+    t = np.linspace(0.0, p.duration_s, 20001)
+    peak = np.abs(truth_position(p, t, 0)).max(axis=0)
+    np.testing.assert_allclose(peak, p.accelerometer.hand_translation_m, rtol=2e-3)
+    (s0, _), (s5, _) = simulate(p, 0), simulate(p, 5)
+    assert not np.allclose(s0.acc_m_s2, s5.acc_m_s2, atol=0.05)
+    clean = [acc_clean(p, simulate(p, seed)[0].t_acc_s, seed) for seed in (0, 5)]
+    assert np.max(np.abs(clean[0] - clean[1])) > 0.01
 
 
 @pytest.mark.parametrize("name", ACC_PROBLEMS)
 def test_the_accelerometer_noise_is_its_density_times_sqrt_rate(name):
     p = load_problem(name)
     session, truth = simulate(p, 3)
-    residual = session.acc_m_s2 - acc_clean(p, session.t_acc_s)
+    residual = session.acc_m_s2 - acc_clean(p, session.t_acc_s, 3)
     expected = 1e-6 * 9.80665 * p.accelerometer.noise_density_ug_sqrt_hz * np.sqrt(p.gyro_rate_hz)
     assert truth["accelerometer"]["sample_std_m_s2"] == pytest.approx(expected, rel=1e-12)
     np.testing.assert_allclose(residual.std(axis=0), expected, rtol=0.05)

@@ -142,14 +142,3 @@ def secant_factor(history: list, level: float, factor: float) -> float:
     step = np.sign(f1) * min(max(abs(step), abs(f1)), MAX_STEP)
     return float(np.exp(step))
 
-
-def accelerometer_redundancy(problem: JointProblem, prep: Prepared, lin: Linearisation, sol) -> float:
-    """The redundancy of the accelerometer's interval means at a solution (`solve.Solution`): their count (3 per
-    interval that has one) less tr(H^-1 H_acc), how many of the unknowns they determine (the attitudes absorb most
-    of what a slow hand does to them)."""
-    x_dm = ca.DM(sol.x)
-    H = problem.hessian_function(x_dm, sol.p_casadi)
-    inverse = inverse_on_pattern(reduce_hessian(H, problem.n_theta, problem.B), H)
-    probe = problem_parameters(problem, prep, lin, sol.sigma_mag, sol.tau0_s, sol.gyro_density,
-                               sol.acc_weight / PROBE_FACTOR)
-    return 3.0 * float(np.sum(sol.acc_weight > 0)) - float(inverse @ group_part(problem, x_dm, H, probe))

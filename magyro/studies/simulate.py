@@ -44,8 +44,8 @@ The accelerometer (a problem's optional ``[accelerometer]``, issue 26) is sample
 gyro's times. The device's position p^w(t) (the accelerometer's) is, on each world axis,
 window(t) * sum_k B_k sin(2 pi f_k t + phi_k): the rotation's window (zero in the rests at both
 ends, C^2, so the acceleration is continuous) and the rotation's band and number of sinusoids,
-drawn from ``default_rng([motion.seed, TRANSLATION_STREAM])`` (the same for every noise seed, the
-rotation's draw untouched), scaled so each axis's peak is ``hand_translation_m``. Its acceleration
+drawn from ``default_rng([motion.seed, TRANSLATION_STREAM, seed])`` (another sway for every noise seed:
+to the calibration the hand is noise; the rotation's draw untouched), scaled so each axis's peak is ``hand_translation_m``. Its acceleration
 a^w = p'' = window'' s + 2 window' s' + window s'' is analytic. The accelerometer's noise is drawn
 after the gyro's and the magnetometer's, so a problem without the section samples as before.
 """
@@ -64,7 +64,7 @@ from magyro.session import Session
 from magyro.studies.scenario import AXES, Scenario
 
 TRUTH_SCHEMA = "magyro.truth/1"
-TRANSLATION_STREAM = 3          # the hand's translation: default_rng([motion.seed, 3]) (fleet devices use [seed, 1])
+TRANSLATION_STREAM = 3          # the hand's translation: default_rng([motion.seed, 3, seed]) (fleet devices use [seed, 1])
 TRANSLATION_PEAK_GRID = 50      # the peak of the position is taken on this many points per period of the band's top
 
 
@@ -284,13 +284,15 @@ def translation_span(problem: Scenario) -> tuple[float, float, float]:
     return start, stop, min(m.ramp_s, 0.5 * (stop - start))
 
 
-def hand_translation(problem: Scenario) -> Translation | None:
-    """The problem's translation, drawn from motion.seed (not the noise seed); None when the device does not move
-    (no accelerometer, hand_translation_m 0 or a static motion)."""
+def hand_translation(problem: Scenario, hand_seed: int | None = None) -> Translation | None:
+    """The problem's translation, drawn from motion.seed and the noise seed `hand_seed` (a simulated session's
+    `seed`): to the calibration the hand's sway is noise, so every noise seed sees another sway of the same size in
+    the same band, about the same turning; None when the device does not move (no accelerometer,
+    hand_translation_m 0 or a static motion)."""
     acc, m = problem.accelerometer, problem.motion
     if acc is None or acc.hand_translation_m == 0.0 or m.kind == "static":
         return None
-    rng = np.random.default_rng([m.seed, TRANSLATION_STREAM])
+    rng = np.random.default_rng([m.seed, TRANSLATION_STREAM] + ([] if hand_seed is None else [hand_seed]))
     freqs, phases, weights = (np.empty((3, m.components)) for _ in range(3))
     for i in range(3):
         freqs[i] = rng.uniform(m.band_hz[0], m.band_hz[1], m.components)
@@ -323,17 +325,17 @@ def translation_derivatives(tr: Translation, t: np.ndarray) -> tuple[np.ndarray,
     return p, a
 
 
-def truth_position(problem: Scenario, t_s) -> np.ndarray:
+def truth_position(problem: Scenario, t_s, hand_seed: int | None = None) -> np.ndarray:
     """p^w(t), the device's (the accelerometer's) position in the world frame relative to where it rests, m (N, 3)."""
     t = np.atleast_1d(np.asarray(t_s, dtype=float))
-    tr = hand_translation(problem)
+    tr = hand_translation(problem, hand_seed)
     return np.zeros((len(t), 3)) if tr is None else translation_derivatives(tr, t)[0]
 
 
-def truth_acceleration(problem: Scenario, t_s) -> np.ndarray:
+def truth_acceleration(problem: Scenario, t_s, hand_seed: int | None = None) -> np.ndarray:
     """a^w(t) = p''(t), m/s^2 (N, 3), analytic (the window's derivatives included)."""
     t = np.atleast_1d(np.asarray(t_s, dtype=float))
-    tr = hand_translation(problem)
+    tr = hand_translation(problem, hand_seed)
     return np.zeros((len(t), 3)) if tr is None else translation_derivatives(tr, t)[1]
 
 
@@ -342,9 +344,9 @@ def gravity_w(problem: Scenario) -> np.ndarray:
     return np.array([0.0, 0.0, -problem.accelerometer.g_m_s2])
 
 
-def truth_specific_force_b(problem: Scenario, t_s) -> np.ndarray:
+def truth_specific_force_b(problem: Scenario, t_s, hand_seed: int | None = None) -> np.ndarray:
     """f^b = C_w^b (a^w - g_vec), m/s^2 (N, 3), in the gyro frame."""
-    f_w = truth_acceleration(problem, t_s) - gravity_w(problem)
+    f_w = truth_acceleration(problem, t_s, hand_seed) - gravity_w(problem)
     return np.einsum("nji,nj->ni", truth_body_attitude(problem, t_s), f_w)
 
 
@@ -380,10 +382,10 @@ def mag_from_attitude(problem: Scenario, C_m_i: np.ndarray) -> np.ndarray:
     return m_m @ np.linalg.inv(problem.R).T + problem.hard_iron
 
 
-def acc_clean(problem: Scenario, t_s: np.ndarray) -> np.ndarray:
+def acc_clean(problem: Scenario, t_s: np.ndarray, hand_seed: int | None = None) -> np.ndarray:
     """Noise-free y_a = K_a^-1 (C_b^a f^b - eps_a), m/s^2 (N, 3)."""
     acc = problem.accelerometer
-    f_a = truth_specific_force_b(problem, t_s) @ acc.C_b_a.T
+    f_a = truth_specific_force_b(problem, t_s, hand_seed) @ acc.C_b_a.T
     return np.linalg.solve(acc.K_a, (f_a - acc.bias_m_s2).T).T
 
 
@@ -399,7 +401,7 @@ def simulate(problem: Scenario, seed: int, noise_scale: float = 1.0) -> tuple[Se
     metadata = {"problem": problem.name, "seed": seed, "gyro_unit": "rad/s", "mag_unit": problem.mag_unit}
     accelerometer = {}
     if problem.accelerometer is not None:   # drawn last: the gyro's and magnetometer's noise are as without it
-        acc = acc_clean(problem, t_g)
+        acc = acc_clean(problem, t_g, seed)
         acc = acc + noise_scale * problem.accelerometer.sample_std_m_s2(problem.gyro_rate_hz) * \
             rng.standard_normal(acc.shape)
         accelerometer = {"t_acc_s": t_g.copy(), "acc_m_s2": acc}
