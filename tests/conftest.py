@@ -84,6 +84,17 @@ def broad02_solved(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def broad02_acc_solved(tmp_path_factory):
+    """(session, calibration) of the shipped BROAD trial 2 with the accelerometer in the least squares
+    (`Options(accelerometer=True)`, `magyro solve --accelerometer`): solved once per run (read-only)."""
+    from magyro.options import Options
+
+    session = load_session(SHIPPED_BROAD_02)
+    return session, shared_across_workers(tmp_path_factory, "broad-02-accelerometer",
+                                          lambda: calibrate(session, Options(accelerometer=True)))
+
+
+@pytest.fixture(scope="session")
 def solve_cache(tmp_path_factory):
     """get(name, seed, via_file=None) -> Solved; each key solved once per run.
 
