@@ -64,8 +64,9 @@ def export_command(
     fmt: str = typer.Option(..., "--format", "-f", help="yaml (a plain, commented YAML file), c (a C99 header with the matrices and apply functions), kalibr (Kalibr's scale-misalignment IMU yaml, exact) or px4 (a QGroundControl .params file: gyro offset only, its cost stated)."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write here (default: print to the terminal)."),
 ):
-    """The calibration for other programs: K_g, bias, C_b_m, K, eps, R, h and the model, as YAML (yaml), a C99 header (c),
-    Kalibr's IMU yaml (kalibr) or a PX4 .params file (px4)."""
+    """The calibration for other programs: K_g, bias, C_b_m, K, eps, R, h (and K_a, its bias and C_b_a when it has an
+    accelerometer) and the model, as YAML (yaml), a C99 header (c), Kalibr's IMU yaml (kalibr) or a PX4 .params file
+    (px4)."""
     from magyro.api import export_file
 
     def action():
