@@ -309,9 +309,14 @@ def apply_file(session_path, calibration_path, output, frame: str = "b", gyro_un
 
     The written gyro columns are the calibrated rates in rad/s, K_g y + eps_b in the gyro frame
     (`frame="b"`) or K y + eps in the magnetometer frame (`frame="m"`); the magnetometer columns
-    are the calibrated field R (y_m - h), of unit norm ("unitless"). Time stamps, accelerometer
-    and truth columns are kept as they are. Parquet metadata says the file is calibrated, by which
-    calibration file and in which frame. Returns the corrected session; the inputs are not changed.
+    are the calibrated field R (y_m - h), of unit norm ("unitless"). When the calibration has an
+    accelerometer (`magyro solve --accelerometer`), the accelerometer columns are the calibrated
+    specific force in m/s^2 in the same frame as the rates: C_b_a^T (K_a y_a + eps_a) in frame b,
+    C_b_m of that in frame m; without one they are kept as they are, as are time stamps and truth
+    columns. Parquet metadata says the file is calibrated, by which calibration file, in which frame
+    and with which model (`calibrated_model`; with an accelerometer in the calibration also
+    `calibrated_accelerometer`, "false" when the session has no accelerometer columns to correct).
+    Returns the corrected session; the inputs are not changed.
     """
     from dataclasses import replace as replaced
 
@@ -326,16 +331,32 @@ def apply_file(session_path, calibration_path, output, frame: str = "b", gyro_un
     session = load_session(session_path, gyro_unit=gyro_unit, mag_unit=mag_unit)
     check_applicable(cal, session, str(session_path))   # not twice, not in another unit, no absurd matrix
     rates_rad_s, field = cal.apply(session.gyro_rad_s, session.mag, frame=frame)
-    check_finite_result(rates_rad_s, field)
+    acc = session.acc_m_s2
+    has_acc = cal.accelerometer is not None and acc is not None and len(acc) > 0
+    specific_force = cal.apply_accelerometer(acc, frame=frame) if has_acc else acc
+    check_finite_result(rates_rad_s, field, specific_force if has_acc else None)
     metadata = {**session.metadata, "calibrated": "true", "calibration": str(calibration_path),
                 "calibration_frame": frame, "calibrated_model": (
                     "gyro = K_g y + eps_b (rad/s, gyro frame b)" if frame == "b" else
                     "gyro = K y + eps = C_b_m (K_g y + eps_b) (rad/s, magnetometer frame m)")
-                + "; mag = R (y_m - h) (unit norm)",
-                "raw_mag_unit": session.mag_unit, "source_session": str(session_path)}
-    corrected = replaced(session, gyro_rad_s=rates_rad_s, mag=field, mag_unit="unitless", metadata=metadata)
+                + "; mag = R (y_m - h) (unit norm)" + accelerometer_model(cal, frame, has_acc),
+                "raw_mag_unit": session.mag_unit, "source_session": str(session_path),
+                **({"calibrated_accelerometer": "true" if has_acc else "false"} if cal.accelerometer is not None else {})}
+    corrected = replaced(session, gyro_rad_s=rates_rad_s, mag=field, mag_unit="unitless", acc_m_s2=specific_force,
+                         metadata=metadata)
     write_session(corrected, output)
     return corrected
+
+
+def accelerometer_model(cal: Calibration, frame: str, applied: bool) -> str:
+    """What `apply_file` did to the accelerometer columns, for `calibrated_model` ("" for a calibration without an
+    accelerometer: the model string is then what it always was)."""
+    if cal.accelerometer is None:
+        return ""
+    if not applied:
+        return "; acc: the session has no accelerometer columns, so the calibration's accelerometer is not applied"
+    return ("; acc = C_b_a^T (K_a y_a + eps_a) (m/s^2, gyro frame b)" if frame == "b" else
+            "; acc = C_b_m C_b_a^T (K_a y_a + eps_a) (m/s^2, magnetometer frame m)")
 
 
 def export_file(calibration_path, fmt: str, output=None) -> str:

@@ -85,8 +85,8 @@ def broad02_solved(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def broad02_acc_solved(tmp_path_factory):
-    """(session, calibration) of the shipped BROAD trial 2 with its accelerometer in the least squares (--accelerometer):
-    solved once per run (read-only)."""
+    """(session, calibration) of the shipped BROAD trial 2 with the accelerometer in the least squares
+    (`Options(accelerometer=True)`, `magyro solve --accelerometer`): solved once per run (read-only)."""
     from magyro.options import Options
 
     session = load_session(SHIPPED_BROAD_02)

@@ -84,17 +84,18 @@ def check_links(paths: list[Path]) -> None:
 def is_batch_summary(path: Path) -> bool:
     """True for a fleet summary a batch wrote (summary.parquet / summary.csv with the summary's columns): in a
     folder that is also OUTDIR it is the batch's own output, never a device. A recording of that name is not."""
-    from magyro.batch.summary import FILES, SUMMARY_COLUMNS
+    from magyro.batch.summary import ACC_COLUMNS, FILES, SUMMARY_COLUMNS, columns_for
 
     if path.name not in (FILES["parquet"], FILES["csv"]):
         return False
+    layouts = (list(SUMMARY_COLUMNS), columns_for([dict.fromkeys(ACC_COLUMNS)]))   # with the accelerometer's too
     try:
         if path.suffix == ".parquet":
             import pyarrow.parquet as pq
 
-            return pq.read_schema(path).names == list(SUMMARY_COLUMNS)
+            return pq.read_schema(path).names in layouts
         with open(path, newline="", encoding="utf-8", errors="replace") as f:
-            return next(csv.reader(f), []) == list(SUMMARY_COLUMNS)
+            return next(csv.reader(f), []) in layouts
     except Exception:   # noqa: BLE001 - unreadable as a summary: then it is not one (the device reader says why)
         return False
 

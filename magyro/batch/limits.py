@@ -10,7 +10,9 @@ summary (`magyro.batch.row`) and `with_verdicts(rows, limits)` adds the columns 
 only read the rows, so changing them never re-solves a session.
 
 A limit left out (None) is no limit. A quantity that a limit needs but the row does not
-hold (NaN) rejects the device: an acceptance never passes what it did not measure.
+hold (NaN) rejects the device: an acceptance never passes what it did not measure. The
+``max_*_acc_*`` limits bound the accelerometer's parameters (``magyro batch --accelerometer``);
+a device whose calibration has no accelerometer is rejected by them, with one reason.
 """
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ import math
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from magyro.batch.row import AXES, EULER, PAIRS, number_of, text_of
+from magyro.batch.row import AXES, EULER, PAIRS, accelerometer_columns, number_of, text_of
 from magyro.errors import InputError
 from magyro.io.toml_file import read_toml
 from magyro.front.findings import KINDS
@@ -30,6 +32,7 @@ FINDING_KINDS = KINDS
 WARNING_KINDS = FINDING_KINDS + ("split_check", "forced", "rests", "other")
 ANY = "any"
 SPLIT_HINT = "run the batch with --split-check"
+ACC_HINT = "no accelerometer in the calibration: run the batch with --accelerometer on sessions with ax ay az"
 
 
 @dataclass(frozen=True)
@@ -44,6 +47,15 @@ class Limits:
     max_std_nonorth_deg: float | None = None
     max_std_bias_deg_s: float | None = None
     max_std_misalignment_deg: float | None = None
+    # the accelerometer's (needs `magyro batch --accelerometer`; a device without it is rejected by these)
+    max_abs_acc_scale_ppm: float | None = None         # |K_a[i,i] - 1|, ppm
+    max_abs_acc_nonorth_deg: float | None = None       # |K_a above the diagonal| as angles, deg
+    max_abs_acc_bias_m_s2: float | None = None         # |eps_a|, m/s^2
+    max_abs_acc_misalignment_deg: float | None = None  # |each Euler angle of C_b_a|, deg
+    max_std_acc_scale_ppm: float | None = None
+    max_std_acc_nonorth_deg: float | None = None
+    max_std_acc_bias_m_s2: float | None = None
+    max_std_acc_misalignment_deg: float | None = None
     max_split_rms_z: float | None = None           # the split-half check's RMS z (needs --split-check)
     reject_warnings: tuple[str, ...] = ()          # warning kinds (row's warning_kinds) that reject; "any": all
     reject_findings: tuple[str, ...] = ()          # recording-check kinds (row's findings), repaired or not
@@ -62,8 +74,17 @@ CHECKS = {
     "max_std_nonorth_deg": ([f"std_nonorth_deg_{p}" for *_, p in PAIRS], "deg", False),
     "max_std_bias_deg_s": ([f"std_bias_deg_s_{a}" for a in AXES], "deg/s", False),
     "max_std_misalignment_deg": ([f"std_misalignment_deg_{a}" for a in AXES], "deg", False),
+    "max_abs_acc_scale_ppm": ([f"acc_scale_ppm_{a}" for a in AXES], "ppm", True),
+    "max_abs_acc_nonorth_deg": ([f"acc_nonorth_deg_{p}" for *_, p in PAIRS], "deg", True),
+    "max_abs_acc_bias_m_s2": ([f"acc_bias_m_s2_{a}" for a in AXES], "m/s^2", True),
+    "max_abs_acc_misalignment_deg": ([f"acc_misalignment_deg_{e}" for e in EULER], "deg", True),
+    "max_std_acc_scale_ppm": ([f"std_acc_scale_ppm_{a}" for a in AXES], "ppm", False),
+    "max_std_acc_nonorth_deg": ([f"std_acc_nonorth_deg_{p}" for *_, p in PAIRS], "deg", False),
+    "max_std_acc_bias_m_s2": ([f"std_acc_bias_m_s2_{a}" for a in AXES], "m/s^2", False),
+    "max_std_acc_misalignment_deg": ([f"std_acc_misalignment_deg_{a}" for a in AXES], "deg", False),
     "max_split_rms_z": (["split_rms_z"], "", False),
 }
+ACCELEROMETER_KEYS = tuple(k for k in CHECKS if "_acc_" in k)
 NUMBER_KEYS = tuple(CHECKS)
 # the accuracy targets (magyro.targets.Targets field) that set each std limit
 STD_OF_TARGET = {"scale_factor_ppm": "max_std_scale_ppm", "non_orthogonality_deg": "max_std_nonorth_deg",
@@ -171,14 +192,22 @@ def verdict(row: dict, limits: Limits | None) -> tuple[str, str]:
         return "failed", failure_reason(row)
     limits = limits if limits is not None else Limits()
     reasons: list[str] = []
+    acc_limited = [key for key in ACCELEROMETER_KEYS if getattr(limits, key) is not None]
+    no_accelerometer = bool(acc_limited) and not any(math.isfinite(number_of(row.get(c)))
+                                                     for c in accelerometer_columns())
     for key, (columns, unit, absolute) in CHECKS.items():
         limit = getattr(limits, key)
         if limit is None:
             continue
+        if no_accelerometer and key in ACCELEROMETER_KEYS:   # said once, not once per column
+            if key == acc_limited[0]:
+                reasons.append(f"accelerometer not measured ({ACC_HINT}): {', '.join(acc_limited)} not checked")
+            continue
         for column in columns:
             value = number_of(row.get(column))
             if not math.isfinite(value):
-                hint = SPLIT_HINT if column == "split_rms_z" else "the calibration did not give it"
+                hint = (SPLIT_HINT if column == "split_rms_z" else ACC_HINT if key in ACCELEROMETER_KEYS
+                        else "the calibration did not give it")
                 reasons.append(f"{column} not measured ({hint})")
             elif (abs(value) if absolute else value) > limit:
                 reasons.append(_broken(column, value, limit, unit, absolute))

@@ -25,6 +25,15 @@ Columns (every row has every column; a failed run has NaN numbers):
     repaired        the kinds magyro repaired
     warning_kinds   every warning's kind, comma separated (recording kinds, split_check, forced, rests, other)
     warnings        the warnings' text, joined by " | "
+
+With an accelerometer in the calibration (`magyro batch --accelerometer`) the row also has
+`accelerometer_columns()`, the accelerometer's parameters with their one-sigma (a row without one
+has none of these keys, so a fleet without accelerometers has the columns above and no others):
+
+    acc_scale_ppm_{x,y,z}, std_acc_scale_ppm_{x,y,z}                 K_a diagonal - 1, ppm
+    acc_nonorth_deg_{xy,xz,yz}, std_acc_nonorth_deg_{xy,xz,yz}       K_a above the diagonal, as angles (deg)
+    acc_bias_m_s2_{x,y,z}, std_acc_bias_m_s2_{x,y,z}                 eps_a, m/s^2
+    acc_misalignment_deg_{roll,pitch,yaw}, std_acc_misalignment_deg_{x,y,z}   C_b_a's Euler angles; std of d
 """
 from __future__ import annotations
 
@@ -50,6 +59,15 @@ def parameter_columns() -> list[str]:
     cols += [f"std_scale_ppm_{a}" for a in AXES] + [f"std_nonorth_deg_{p}" for *_, p in PAIRS]
     cols += [f"std_bias_deg_s_{a}" for a in AXES] + [f"std_misalignment_deg_{a}" for a in AXES]
     cols += [f"hard_iron_{a}" for a in AXES] + ["field_strength", "time_offset_s", "rank", "split_rms_z"]
+    return cols
+
+
+def accelerometer_columns() -> list[str]:
+    """The accelerometer's numeric columns, in summary order (only in rows of calibrations that have one)."""
+    cols = [f"acc_scale_ppm_{a}" for a in AXES] + [f"acc_nonorth_deg_{p}" for *_, p in PAIRS]
+    cols += [f"acc_bias_m_s2_{a}" for a in AXES] + [f"acc_misalignment_deg_{e}" for e in EULER]
+    cols += [f"std_acc_scale_ppm_{a}" for a in AXES] + [f"std_acc_nonorth_deg_{p}" for *_, p in PAIRS]
+    cols += [f"std_acc_bias_m_s2_{a}" for a in AXES] + [f"std_acc_misalignment_deg_{a}" for a in AXES]
     return cols
 
 
@@ -111,6 +129,8 @@ def row_from_calibration(device_id: str, session: str, cal) -> dict:
         row[f"std_nonorth_deg_{p}"] = math.degrees(std.K_g[i, j])
     for e, value in zip(EULER, cal.euler_deg):
         row[f"misalignment_deg_{e}"] = value
+    if cal.accelerometer is not None:
+        row.update(accelerometer_values(cal.accelerometer))
     row["field_strength"] = float(1.0 / np.cbrt(np.prod(np.diag(cal.R))))
     row["time_offset_s"] = cal.time_offset_s
     row["rank"] = cal.observability.rank
@@ -127,6 +147,23 @@ def row_from_calibration(device_id: str, session: str, cal) -> dict:
                warnings=" | ".join(cal.warnings))
     return {k: (float(v) if isinstance(v, (np.floating, np.integer)) and k != "exit_code" else v)
             for k, v in row.items()}
+
+
+def accelerometer_values(acc) -> dict:
+    """The accelerometer_columns() of a `magyro.result.accelerometer.AccelerometerCalibration`."""
+    values = {}
+    for i, a in enumerate(AXES):
+        values[f"acc_scale_ppm_{a}"] = 1e6 * (acc.K_a[i, i] - 1.0)
+        values[f"std_acc_scale_ppm_{a}"] = 1e6 * acc.std_K_a[i, i]
+        values[f"acc_bias_m_s2_{a}"] = acc.bias_m_s2[i]
+        values[f"std_acc_bias_m_s2_{a}"] = acc.std_bias_m_s2[i]
+        values[f"std_acc_misalignment_deg_{a}"] = acc.std_misalignment_deg[i]
+    for i, j, p in PAIRS:
+        values[f"acc_nonorth_deg_{p}"] = math.degrees(acc.K_a[i, j])
+        values[f"std_acc_nonorth_deg_{p}"] = math.degrees(acc.std_K_a[i, j])
+    for e, value in zip(EULER, acc.euler_deg):
+        values[f"acc_misalignment_deg_{e}"] = value
+    return {c: float(values[c]) for c in accelerometer_columns()}
 
 
 def number_of(value) -> float:

@@ -3,14 +3,16 @@
 `write_summary(rows, outdir, limits)` judges every row (`magyro.batch.limits.with_verdicts`),
 sorts them by device and writes the three files, each atomically (whole or absent):
 
-    summary.parquet   one row per session, the columns of `magyro.batch.row.COLUMNS` then
-                      verdict, verdict_reason; numbers float64 (exit_code int64), text strings
+    summary.parquet   one row per session, the columns of `magyro.batch.row.COLUMNS` (with
+                      `accelerometer_columns()` before mag_unit when any row has them: a batch with
+                      --accelerometer) then verdict, verdict_reason; numbers float64 (exit_code
+                      int64), text strings
     summary.csv       the same table; a missing number is an empty field
     summary.html      one self-contained page (CSS inline, figures as PNG data URIs drawn at twice
                       the size shown, `magyro.report.embed`; no scripts, fonts or links): the counts, every failed or rejected device
                       with its reason, the limits, the distribution of each gyro parameter
-                      (and std, hard iron...) across the calibrated devices with the limits
-                      drawn and the outliers named
+                      (and std, hard iron..., and the accelerometer's when the rows have them)
+                      across the calibrated devices with the limits drawn and the outliers named
 
 `outliers(rows)` names the devices far from the fleet: |x - median| / (1.4826 MAD) above a
 threshold (5) in a column, when at least `min_devices` (8) calibrated devices have it.
@@ -59,7 +61,24 @@ FIGURES = [
         ("time offset", "s", ["time_offset_s"], None),
         ("split-half RMS z", "", ["split_rms_z"], "max_split_rms_z")]),
 ]
-OUTLIER_COLUMNS = [c for c in schema.parameter_columns() if c != "rank"]
+# drawn only when the table has the accelerometer's columns (a batch with --accelerometer)
+ACC_FIGURES = [
+    ("The accelerometer's parameters", [
+        ("scale factor off 1", "ppm", [f"acc_scale_ppm_{a}" for a in AX], "max_abs_acc_scale_ppm"),
+        ("non-orthogonality", "deg", [f"acc_nonorth_deg_{p}" for p in PR], "max_abs_acc_nonorth_deg"),
+        ("bias", "m/s²", [f"acc_bias_m_s2_{a}" for a in AX], "max_abs_acc_bias_m_s2"),
+        ("misalignment (C_b_a Euler)", "deg", [f"acc_misalignment_deg_{e}" for e in EU],
+         "max_abs_acc_misalignment_deg")]),
+    ("The accelerometer's one-sigma", [
+        ("std of the scale factor", "ppm", [f"std_acc_scale_ppm_{a}" for a in AX], "max_std_acc_scale_ppm"),
+        ("std of the non-orthogonality", "deg", [f"std_acc_nonorth_deg_{p}" for p in PR], "max_std_acc_nonorth_deg"),
+        ("std of the bias", "m/s²", [f"std_acc_bias_m_s2_{a}" for a in AX], "max_std_acc_bias_m_s2"),
+        ("std of the misalignment", "deg", [f"std_acc_misalignment_deg_{a}" for a in AX],
+         "max_std_acc_misalignment_deg")]),
+]
+ACC_COLUMNS = schema.accelerometer_columns()
+# a column that fewer than `min_devices` rows hold (the accelerometer's, in a fleet without one) names no outlier
+OUTLIER_COLUMNS = [c for c in schema.parameter_columns() if c != "rank"] + ACC_COLUMNS
 MAX_LABELS = 6          # outliers labelled on one panel (all of them are in the table)
 MAIN_MAX_WIDTH_PX, MAIN_PADDING_PX = 1040, 28             # the page's main column (CSS) and its padding either side
 FIGURE_WIDTH_PX = MAIN_MAX_WIDTH_PX - 2 * MAIN_PADDING_PX  # the width the figures are drawn for and shown at
@@ -84,16 +103,35 @@ def write_summary(rows, outdir, limits: Limits | None = None, title: str = "magy
     return paths
 
 
+def columns_for(rows) -> list[str]:
+    """The summary's columns: SUMMARY_COLUMNS, with the accelerometer's (before mag_unit) when any row has them."""
+    if not any(c in r for r in rows for c in ACC_COLUMNS):
+        return list(SUMMARY_COLUMNS)
+    columns = list(SUMMARY_COLUMNS)
+    at = columns.index("mag_unit")
+    return columns[:at] + ACC_COLUMNS + columns[at:]
+
+
 def summary_rows(rows, limits: Limits | None) -> list[dict]:
-    """The rows with every summary column (missing ones from `empty_row`), judged, sorted by device and session."""
+    """The rows with every summary column (missing ones from `empty_row`, NaN for the accelerometer's in a row
+    without one when another row has them), judged, sorted by device and session."""
+    columns = columns_for(rows)
+    with_accelerometer = len(columns) > len(SUMMARY_COLUMNS)
     full = []
     for r in rows:
         base = schema.empty_row(str(r.get("device_id", "")), str(r.get("session", "")))
+        if with_accelerometer:
+            base.update({c: math.nan for c in ACC_COLUMNS})
         base.update({k: v for k, v in r.items() if k in base})
         full.append(base)
     judged = with_verdicts(full, limits)
     judged.sort(key=lambda r: (text_of(r["device_id"]), text_of(r["session"])))
-    return [{c: _clean(c, r.get(c)) for c in SUMMARY_COLUMNS} for r in judged]
+    return [{c: _clean(c, r.get(c)) for c in columns} for r in judged]
+
+
+def _columns_of(table: list[dict]) -> list[str]:
+    """The columns of a judged table (`summary_rows`), in order."""
+    return list(table[0]) if table else list(SUMMARY_COLUMNS)
 
 
 def _clean(column: str, value):
@@ -113,9 +151,10 @@ def write_parquet(table: list[dict], path: Path) -> None:
 
     def kind(c):
         return pa.string() if c in TEXT_COLUMNS else pa.int64() if c in INT_COLUMNS else pa.float64()
-    schema_ = pa.schema([(c, kind(c)) for c in SUMMARY_COLUMNS])
+    columns = _columns_of(table)
+    schema_ = pa.schema([(c, kind(c)) for c in columns])
     arrays = {c: pa.array([r[c] for r in table], type=schema_.field(c).type, from_pandas=True)
-              for c in SUMMARY_COLUMNS}
+              for c in columns}
     frame = pa.Table.from_pydict(arrays, schema=schema_)
     write_atomically(Path(path), lambda tmp: pq.write_table(frame, tmp))
 
@@ -124,9 +163,10 @@ def csv_text(table: list[dict]) -> str:
     """The summary as CSV: a header of the columns, numbers at full precision, a missing number empty."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(SUMMARY_COLUMNS)
+    columns = _columns_of(table)
+    writer.writerow(columns)
     for r in table:
-        writer.writerow([_csv_value(c, r[c]) for c in SUMMARY_COLUMNS])
+        writer.writerow([_csv_value(c, r[c]) for c in columns])
     return buffer.getvalue()
 
 
@@ -246,7 +286,8 @@ def _distribution_section(table, limits, found) -> str:
     sentence = (f"Each dot is one of the {len(calibrated)} calibrated devices (red: the value breaks its limit); "
                 "dashed lines are the limits; outliers (robust z above 5) are ringed and named.")
     figures = []
-    for fig_title, panels in FIGURES:
+    has_acc = any(c in calibrated[0] for c in ACC_COLUMNS)
+    for fig_title, panels in FIGURES + (ACC_FIGURES if has_acc else []):
         fig = distribution_figure(calibrated, panels, limits, found)
         if fig is None:
             continue

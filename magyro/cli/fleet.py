@@ -26,6 +26,8 @@ def batch(
     redo: bool = typer.Option(False, "--redo", help="Solve every device again, even those already done with the same input and options."),
     reports: bool = typer.Option(False, "--reports", help="Also write each device's HTML report into reports/ (needs magyro[plot]; slower)."),
     split_check: bool = typer.Option(False, "--split-check", help="Also calibrate each half of every recording alone (about 2x the time); gives the split_rms_z column."),
+    accelerometer: bool = typer.Option(False, "--accelerometer/--no-accelerometer", help="Calibrate each device's accelerometer (ax ay az, m/s^2) in the same least squares (as magyro solve --accelerometer): gives the acc_* columns the max_*_acc_* limits bound (default: off)."),
+    gravity: float = typer.Option(9.80665, "--gravity", min=9.7, max=9.9, help="The local gravity in m/s^2 the accelerometers are calibrated against."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the files' metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
     gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", parser=gyro_noise_density, metavar="DENSITY", help=gyro_noise_help("estimated per device")),
@@ -52,7 +54,8 @@ def batch(
         if targets_file is not None or any(v is not None for v in flags):   # the std limits: the shared targets
             chosen = with_targets(chosen, resolve_targets(targets_file, *flags))
         options = Options.in_user_units(gyro_noise_deg_s_sqrt_hz, mag_noise, split_check=split_check,
-                                        repairs=Repairs.without(no_repair or []))
+                                        repairs=Repairs.without(no_repair or []), accelerometer=accelerometer,
+                                        gravity_m_s2=gravity)
         with counting(0, "devices", enabled=not quiet) as tick:
             def show(done: int, total: int, row: dict) -> None:
                 if tick is not None:

@@ -39,17 +39,22 @@ def apply_command(
     session: Path = typer.Argument(..., metavar="SESSION", help="Session file to correct (.parquet or .csv, docs/spec.md section 2)."),
     calibration: Path = typer.Argument(..., metavar="CALIB", help="Calibration JSON written by magyro solve."),
     output: Path = typer.Option(..., "-o", "--output", help="Corrected session file to write (.parquet or .csv)."),
-    frame: str = typer.Option("b", "--frame", help="Frame of the corrected rates: b (the gyro's: K_g y + eps_b) or m (the magnetometer's: K y + eps)."),
+    frame: str = typer.Option("b", "--frame", help="Frame of the corrected rates (and of the specific force, when the calibration has an accelerometer): b (the gyro's: K_g y + eps_b) or m (the magnetometer's: K y + eps)."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
 ):
-    """Correct a session with a calibration: gyro as calibrated rates in rad/s, magnetometer as the unit field R (y - h)."""
+    """Correct a session with a calibration: gyro as calibrated rates in rad/s, magnetometer as the unit field R (y - h),
+    and (when the calibration has an accelerometer) ax ay az as the calibrated specific force in m/s^2."""
     from magyro.api import apply_file
 
     def action():
         s = apply_file(session, calibration, output, frame=frame, gyro_unit=gyro_unit, mag_unit=mag_unit)
+        acc = {"true": f", {0 if s.t_acc_s is None else len(s.t_acc_s)} accelerometer samples as the calibrated "
+                       f"specific force in m/s^2 (frame {frame})",
+               "false": "; the session has no accelerometer columns: the calibration's accelerometer is not applied"}
         typer.echo(f"corrected session written to {output}: {len(s.t_gyro_s)} gyro samples in rad/s (frame {frame}), "
-                   f"{len(s.t_mag_s)} magnetometer samples as the unit field")
+                   f"{len(s.t_mag_s)} magnetometer samples as the unit field"
+                   + acc.get(s.metadata.get("calibrated_accelerometer", ""), ""))
 
     run_guarded(action)
 
@@ -59,8 +64,9 @@ def export_command(
     fmt: str = typer.Option(..., "--format", "-f", help="yaml (a plain, commented YAML file), c (a C99 header with the matrices and apply functions), kalibr (Kalibr's scale-misalignment IMU yaml, exact) or px4 (a QGroundControl .params file: gyro offset only, its cost stated)."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write here (default: print to the terminal)."),
 ):
-    """The calibration for other programs: K_g, bias, C_b_m, K, eps, R, h and the model, as YAML (yaml), a C99 header (c),
-    Kalibr's IMU yaml (kalibr) or a PX4 .params file (px4)."""
+    """The calibration for other programs: K_g, bias, C_b_m, K, eps, R, h (and K_a, its bias and C_b_a when it has an
+    accelerometer) and the model, as YAML (yaml), a C99 header (c), Kalibr's IMU yaml (kalibr) or a PX4 .params file
+    (px4)."""
     from magyro.api import export_file
 
     def action():

@@ -145,6 +145,41 @@ def parameter_rows(cal, check=None) -> list[ParameterRow]:
     return rows
 
 
+def accelerometer_rows(acc) -> list[ParameterRow]:
+    """The accelerometer's parameters (`magyro solve --accelerometer`) in readable units, each with its std: scale
+    factors (K_a's diagonal - 1, ppm), non-orthogonality (above it, as angles), bias (m/s^2) and C_b_a's Euler
+    angles. Not judged against the targets, which are the gyro's."""
+    rows = []
+    for i, a in enumerate("xyz"):
+        rows.append(ParameterRow("acc_scale", a, f"scale factor {a}", 1e6 * (acc.K_a[i, i] - 1.0),
+                                 1e6 * acc.std_K_a[i, i], "ppm"))
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        axis = "xyz"[i] + "xyz"[j]
+        rows.append(ParameterRow("acc_nonorth", axis, f"non-orthogonality {axis} (K_a[{i},{j}])",
+                                 float(np.rad2deg(acc.K_a[i, j])), float(np.rad2deg(acc.std_K_a[i, j])), "deg"))
+    for k, a in enumerate("xyz"):
+        rows.append(ParameterRow("acc_bias", a, f"bias {a}", float(acc.bias_m_s2[k]), float(acc.std_bias_m_s2[k]),
+                                 "m/s²"))
+    for k, name in enumerate(("roll", "pitch", "yaw")):
+        rows.append(ParameterRow("acc_misalignment", name, f"misalignment {name} (C_b_a)", float(acc.euler_deg[k]),
+                                 float(acc.std_misalignment_deg[k]), "deg"))
+    return rows
+
+
+def accelerometer_details(acc) -> str:
+    """The accelerometer's table for the calibration section's details (HTML)."""
+    digits = {"ppm": 0, "deg": 3, "m/s²": 4}
+    body = [[r.label, f"{r.value:+.{digits[r.unit]}f}", f"{r.std:.{digits[r.unit]}f}", r.unit]
+            for r in accelerometer_rows(acc)]
+    body.append(["gravity it was calibrated against (given)", f"{acc.g_m_s2:.5f}", "", "m/s²"])
+    return ("<h3>Accelerometer</h3>" + table(["parameter", "estimate", "± 1σ", "unit"], body, "numbers params")
+            + "<p class='small'>Solved in the same least squares (<code>magyro solve --accelerometer</code>) against "
+            "gravity: f_a = K_a y_a + ε_a in the accelerometer's frame a, f_b = C_b_aᵀ f_a in the gyro's. Scale "
+            "factors are K_a's diagonal minus 1 in ppm; non-orthogonality is K_a's off-diagonal as an angle; the "
+            "misalignment is C_b_a (gyro to accelerometer frame) as roll, pitch, yaw. Not judged against the "
+            "targets, which are the gyro's.</p>")
+
+
 def sigma(r: ParameterRow) -> float:
     """The honest one-sigma of a parameter: the split-half one when it is larger than the reported one."""
     return max(r.std, r.split_std or 0.0)
@@ -196,6 +231,15 @@ def calibration_section(cal, check=None, targets=None) -> Section:
     if cal.rests is not None and cal.rests.seconds > 0:
         sentence += (f", and the {cal.rests.seconds:.1f} s of rest imply a bias within "
                      f"{num(float(np.max(np.abs(cal.rests.estimate_minus_rest_deg_s))), 2)} deg/s of the estimate")
+    acc = cal.accelerometer
+    if acc is not None:
+        acc_rows = accelerometer_rows(acc)
+        acc_scale = [r for r in acc_rows if r.group == "acc_scale"]
+        acc_bias = [r for r in acc_rows if r.group == "acc_bias"]
+        sentence += (f"; the accelerometer's scale factors are off by {', '.join(f'{r.value:+.0f}' for r in acc_scale)}"
+                     f" ppm and its bias is {', '.join(f'{r.value:+.4f}' for r in acc_bias)} m/s², known to "
+                     f"±{num(max(r.std for r in acc_scale), 2)} ppm and ±{num(max(r.std for r in acc_bias), 2)} m/s² "
+                     "at most")
     sentence += f" ({cal.solver.method} {cal.solver.status}, {cal.solver.iterations} iterations)."
     has_split = any(r.split_std is not None for r in rows)
     has_rest = any(r.rest is not None for r in rows)
@@ -228,6 +272,8 @@ def calibration_section(cal, check=None, targets=None) -> Section:
     details += ("<p class='small'>Scale factors are K_g's diagonal minus 1 in parts per million; non-orthogonality "
                 "is K_g's off-diagonal as an angle; the misalignment is C_b_m (gyro to magnetometer frame) as roll, "
                 "pitch, yaw. Model: ω = K_g y + ε_b.</p>")
+    if acc is not None:
+        details += accelerometer_details(acc)
     fig = figures.calibration_figure(rows)
     caveat = ("" if status == GOOD else
               f"{known_to(above[0])}, above its {target_of(above[0], targets):g} {above[0].unit} target"

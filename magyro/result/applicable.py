@@ -36,9 +36,12 @@ def same_unit(a: str, b: str) -> bool:
 
 
 def singular_matrix(cal) -> str | None:
-    """Which of K_g and R is singular or nearly so (condition number above MAX_CONDITION), said in words; None
-    when neither is."""
-    for name, M in (("gyro K_g", cal.K_g), ("magnetometer R", cal.R)):
+    """Which of K_g and R (and the accelerometer's K_a, when the calibration has one) is singular or nearly so
+    (condition number above MAX_CONDITION), said in words; None when none is."""
+    accelerometer = getattr(cal, "accelerometer", None)
+    matrices = (("gyro K_g", cal.K_g), ("magnetometer R", cal.R)) + (
+        (("accelerometer K_a", accelerometer.K_a),) if accelerometer is not None else ())
+    for name, M in matrices:
         M = np.asarray(M, dtype=float)
         with np.errstate(all="ignore"):
             condition = np.linalg.cond(M) if np.all(np.isfinite(M)) else np.inf
@@ -76,8 +79,12 @@ def check_applicable(cal, session, name: str, *, magnetometer: bool = True) -> N
                          f"calibration made in {escaped(session_unit)}")
 
 
-def check_finite_result(rates, field=None) -> None:
-    """InputError when applying the calibration gave a rate or field that is not finite (nothing is written)."""
+def check_finite_result(rates, field=None, specific_force=None) -> None:
+    """InputError when applying the calibration gave a rate, field or specific force that is not finite (nothing is
+    written)."""
     if not np.all(np.isfinite(rates)) or (field is not None and not np.all(np.isfinite(field))):
         raise InputError("applying the calibration gives values that are not finite (the readings times K_g or R "
                          "overflow); nothing written")
+    if specific_force is not None and not np.all(np.isfinite(specific_force)):
+        raise InputError("applying the calibration gives accelerometer values that are not finite (the readings "
+                         "times K_a overflow, or an ax ay az is not finite); nothing written")

@@ -89,6 +89,17 @@ class Calibration:
         field_m = None if mag is None else calibrated_field(self.R, self.h, np.asarray(mag, dtype=float))
         return rates, field_m
 
+    def apply_accelerometer(self, acc_m_s2, frame: str = "b") -> np.ndarray:
+        """The calibrated specific force (m/s^2) in the frame `apply` gives the rates in: the gyro's,
+        C_b_a^T (K_a y_a + eps_a) (`frame="b"`), or the magnetometer's, C_b_m of that (`frame="m"`). Rows are
+        samples; the input is not changed. InputError when the calibration has no accelerometer."""
+        if self.accelerometer is None:
+            raise InputError("the calibration has no accelerometer (solve with --accelerometer to calibrate one)")
+        if frame not in ("b", "m"):
+            raise InputError(f"unknown frame '{frame}'; use b (the gyro's) or m (the magnetometer's)")
+        f_b = self.accelerometer.apply(acc_m_s2, frame="b")
+        return f_b if frame == "b" else f_b @ self.C_b_m.T
+
     @classmethod
     def from_parameters(cls, K_g, bias_rad_s, C_b_m=None, R=None, h=None, mag_unit: str = "unknown",
                         field_i=None, method: str = "given") -> "Calibration":

@@ -6,6 +6,7 @@ to the same double:
     gyro, frame b:   w_b = K_g y + eps_b      (rad/s; the bias is ADDED, not subtracted)
     gyro, frame m:   w_m = K y + eps          (K = C_b_m K_g, eps = C_b_m eps_b)
     magnetometer:    m_m = R (y_m - h)        (unit norm; h in the magnetometer's unit)
+    accelerometer:   f_a = K_a y_a + eps_a    (m/s^2, when the calibration has one; f_b = C_b_a^T f_a)
 
 `export_text(cal, "yaml" | "c" | "kalibr" | "px4", source=...)` returns the text; `magyro export` writes it.
 The formats of other tools (Kalibr's scale-misalignment IMU yaml, a PX4 .params file) are in
@@ -19,7 +20,7 @@ import numpy as np
 
 from magyro.errors import InputError
 from magyro.result.calibration import SCHEMA, Calibration
-from magyro.result.export_common import MODEL_LINES, check_finite, yaml_array, yaml_number  # noqa: F401 (API)
+from magyro.result.export_common import MODEL_LINES, check_finite, model_lines, yaml_array, yaml_number  # noqa: F401 (API)
 from magyro.result.export_tools import kalibr_text, px4_text
 from magyro.text import c_comment
 
@@ -43,7 +44,7 @@ def yaml_text(cal: Calibration, source: str = "") -> str:
     """A plain YAML file: the model in comments, then the parameters (flow-style lists, row-major matrices)."""
     check_finite(cal)
     lines = ["# magyro calibration, exported for other programs (magyro export --format yaml)",
-             *(f"# {line}" for line in MODEL_LINES),
+             *(f"# {line}" for line in model_lines(cal)),
              "# Every number reads back to the same double.",
              f"schema: {json.dumps(SCHEMA)}",
              f"source: {json.dumps(str(source))}",
@@ -63,6 +64,18 @@ def yaml_text(cal: Calibration, source: str = "") -> str:
              f"  R: {yaml_array(cal.R)}",
              f"  h: {yaml_array(cal.h)}",
              ]
+    acc = cal.accelerometer
+    if acc is not None:
+        lines += ["accelerometer:",
+                  "  # f_a = K_a y_a + bias_m_s2 (m/s^2, accelerometer frame a); K_a upper triangular (scale on the",
+                  "  # diagonal, non-orthogonality above); the bias is ADDED",
+                  f"  K_a: {yaml_array(acc.K_a)}",
+                  f"  bias_m_s2: {yaml_array(acc.bias_m_s2)}",
+                  "  # C_b_a turns gyro-frame vectors into accelerometer-frame vectors: f_a = C_b_a f_b, f_b = C_b_a^T f_a",
+                  f"  C_b_a: {yaml_array(acc.C_b_a)}",
+                  "  # the gravity, m/s^2, the accelerometer was calibrated against",
+                  f"  g_m_s2: {yaml_number(acc.g_m_s2)}",
+                  ]
     return "\n".join(lines) + "\n"
 
 
@@ -98,14 +111,22 @@ def c_header(cal: Calibration, source: str = "") -> str:
     lines = ["/* magyro calibration, exported for other programs (magyro export --format c).",
              f" * source: {c_comment(source)}",
              f" * magnetometer unit: {c_comment(cal.mag_unit)}",
-             *(f" *   {c_comment(line)}" for line in MODEL_LINES),
+             *(f" *   {c_comment(line)}" for line in model_lines(cal)),
              " * C99, no allocation; include it in one or more .c files. */",
              "#ifndef MAGYRO_CALIBRATION_H",
              "#define MAGYRO_CALIBRATION_H",
              ""]
+    acc = cal.accelerometer
+    if acc is not None:
+        arrays += (("magyro_K_a", acc.K_a, "[3][3]", "accelerometer scale and non-orthogonality, upper triangular"),
+                   ("magyro_bias_m_s2", acc.bias_m_s2, "[3]", "eps_a, m/s^2, ADDED: f_a = K_a y_a + eps_a"),
+                   ("magyro_C_b_a", acc.C_b_a, "[3][3]", "gyro frame to accelerometer frame: f_a = C_b_a f_b"))
     for name, value, shape, what in arrays:
         lines.append(f"/* {what} */")
         lines.append(f"static const double {name}{shape} = {_c_array(value)};")
+    if acc is not None:
+        lines.append("/* the gravity the accelerometer was calibrated against, m/s^2 */")
+        lines.append(f"static const double magyro_g_m_s2 = {_c_number(acc.g_m_s2)};")
     lines += ["",
               "/* w = M y + b for a 3x3 M and 3-vectors y, b */",
               "static inline void magyro_affine3(const double M[3][3], const double y[3], const double b[3], double w[3])",
@@ -135,6 +156,33 @@ def c_header(cal: Calibration, source: str = "") -> str:
               "    const double zero[3] = {0.0, 0.0, 0.0};",
               "    magyro_affine3(magyro_R, d, zero, m);",
               "}",
-              "",
-              "#endif /* MAGYRO_CALIBRATION_H */"]
+              ""]
+    if acc is not None:
+        lines += ["/* calibrated specific force in the accelerometer frame a: f_a = K_a y_a + eps_a (m/s^2 in, m/s^2 out) */",
+                  "static inline void magyro_apply_acc(const double y_a[3], double f_a[3])",
+                  "{",
+                  "    magyro_affine3(magyro_K_a, y_a, magyro_bias_m_s2, f_a);",
+                  "}",
+                  "",
+                  "/* calibrated specific force in the gyro frame b: f_b = C_b_a^T (K_a y_a + eps_a) (m/s^2) */",
+                  "static inline void magyro_apply_acc_b(const double y_a[3], double f_b[3])",
+                  "{",
+                  "    double f_a[3];",
+                  "    int i;",
+                  "    magyro_apply_acc(y_a, f_a);",
+                  "    for (i = 0; i < 3; ++i) {",
+                  "        f_b[i] = magyro_C_b_a[0][i] * f_a[0] + magyro_C_b_a[1][i] * f_a[1] + magyro_C_b_a[2][i] * f_a[2];",
+                  "    }",
+                  "}",
+                  "",
+                  "/* calibrated specific force in the magnetometer frame m: f_m = C_b_m C_b_a^T (K_a y_a + eps_a) (m/s^2) */",
+                  "static inline void magyro_apply_acc_m(const double y_a[3], double f_m[3])",
+                  "{",
+                  "    double f_b[3];",
+                  "    const double zero[3] = {0.0, 0.0, 0.0};",
+                  "    magyro_apply_acc_b(y_a, f_b);",
+                  "    magyro_affine3(magyro_C_b_m, f_b, zero, f_m);",
+                  "}",
+                  ""]
+    lines.append("#endif /* MAGYRO_CALIBRATION_H */")
     return "\n".join(lines) + "\n"

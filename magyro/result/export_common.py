@@ -13,6 +13,16 @@ MODEL_LINES = (
     "magnetometer:   m_m = R (y_m - h)     (unitless, unit norm; h in the magnetometer's unit)",
     "y: raw gyro in rad/s; y_m: raw magnetometer in its unit; matrices are row-major, [row][column]",
 )
+# added after MODEL_LINES when the calibration has an accelerometer (magyro solve --accelerometer)
+ACC_MODEL_LINES = (
+    "accelerometer:  f_a = K_a y_a + eps_a (m/s^2, accelerometer frame a; the bias is ADDED: not y_a - b)",
+    "                f_b = C_b_a^T f_a     (m/s^2, gyro frame b; f_m = C_b_m f_b); y_a: raw accelerometer in m/s^2",
+)
+
+
+def model_lines(cal) -> tuple:
+    """The model's comment lines for `cal`: MODEL_LINES, and ACC_MODEL_LINES when it has an accelerometer."""
+    return MODEL_LINES + (ACC_MODEL_LINES if cal.accelerometer is not None else ())
 
 
 def yaml_number(x: float) -> str:
@@ -32,11 +42,17 @@ def yaml_array(a) -> str:
 
 
 def check_finite(cal) -> None:
-    """InputError when any exported number of the calibration is not finite, or when K_g or R is singular (every
-    format checks this first: a singular matrix has no inverse for the tools, nor a field strength)."""
+    """InputError when any exported number of the calibration is not finite, or when K_g or R (or the accelerometer's
+    K_a) is singular (every format checks this first: a singular matrix has no inverse for the tools, nor a field
+    strength)."""
     if not np.all(np.isfinite(np.concatenate([np.ravel(a) for a in (cal.K_g, cal.bias_rad_s, cal.C_b_m, cal.K,
                                                                        cal.eps_rad_s, cal.R, cal.h)]))):
         raise InputError("the calibration holds a number that is not finite; nothing to export")
+    acc = cal.accelerometer
+    if acc is not None:
+        if not np.all(np.isfinite(np.concatenate([np.ravel(a) for a in (acc.K_a, acc.bias_m_s2, acc.C_b_a,
+                                                                           [acc.g_m_s2])]))):
+            raise InputError("the calibration's accelerometer holds a number that is not finite; nothing to export")
     singular = singular_matrix(cal)
     if singular is not None:
         raise InputError(f"{singular}: it cannot be inverted; nothing to export")
