@@ -91,3 +91,26 @@ def test_the_ekf_does_not_calibrate_the_accelerometer(broad02_solved):
     session, _ = broad02_solved
     with pytest.raises(InputError, match="least squares only"):
         calibrate(session, Options(accelerometer=True), EKF())
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_still_hand_recovers_the_simulated_accelerometer_within_its_std(seed):
+    """The algebra, on paper-table1-acc without the hand's sway (only gravity and white noise): every accelerometer
+    parameter within 4 reported std of the truth, and the gyro's too."""
+    from magyro.studies.scenario import load_problem
+    from magyro.studies.simulate import simulate
+    from magyro.result.reported import misalignment_vector
+
+    problem = load_problem("paper-table1-acc")
+    still = dataclasses.replace(problem, accelerometer=dataclasses.replace(problem.accelerometer, hand_translation_m=0.0))
+    session, truth = simulate(still, seed)
+    cal = calibrate(session, Options(accelerometer=True))
+    acc, t = cal.accelerometer, truth["accelerometer"]
+    upper = np.triu_indices(3)
+    z_K = (acc.K_a - np.asarray(t["K_a"]))[upper] / acc.std_K_a[upper]
+    z_b = (acc.bias_m_s2 - np.asarray(t["bias_m_s2"])) / acc.std_bias_m_s2
+    z_d = np.rad2deg(misalignment_vector(np.asarray(t["C_b_a"]), acc.C_b_a)) / acc.std_misalignment_deg
+    assert np.all(np.abs(np.concatenate([z_K, z_b, z_d])) < 4), (z_K, z_b, z_d)
+    assert np.all(np.abs(np.diag(acc.K_a) - np.diag(t["K_a"])) < 3e-3) and np.all(np.abs(z_b * acc.std_bias_m_s2) < 0.05)
+    z_g = (cal.bias_deg_s - np.asarray(truth["gyro"]["bias_deg_s"])) / cal.std.bias_deg_s
+    assert np.all(np.abs(z_g) < 4), z_g

@@ -54,7 +54,6 @@ class AccelerometerStart:
     sigma_white_m_s2: float    # the accelerometer's white noise per sample (RMS over the axes)
     interval_s: np.ndarray     # (n_int,)
     weight: np.ndarray         # (n_int,) the interval means' weights at the start
-    angular_acceleration: np.ndarray | None = None   # (n_int, 3) rad/s^2 from the raw gyro, per interval
 
     def globals(self) -> dict:
         return {"A0": self.A0, "b0": self.b0, "u0": self.u0_i, "Bu": so3.tangent_basis(self.u0_i),
@@ -78,12 +77,6 @@ def segment_start_times(grid: Grid) -> np.ndarray:
     """(n_int, stride) times of every segment start."""
     seg_s = grid.dt_s.sum(axis=2)
     return grid.t_node_s[:-1, None] + np.cumsum(seg_s, axis=1) - seg_s
-
-
-def angular_acceleration(grid: Grid) -> np.ndarray:
-    """(n_int, 3) the raw gyro's change over each interval over its length, rad/s^2."""
-    rate = np.vstack([grid.gyro_a[:, 0, 0], grid.gyro_b[-1:, -1, -1]])   # at the nodes
-    return np.diff(rate, axis=0) / grid.interval_s[:, None]
 
 
 def samples_at(t_s: np.ndarray, values: np.ndarray, at_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -139,7 +132,7 @@ def accelerometer_start(full_session, session, grid: Grid, C_m_i_nodes: np.ndarr
     u0 = u0 / np.linalg.norm(u0)
     sigma = white_noise_m_s2(full_session, rest_segments)
     start = AccelerometerStart(y, share, count, rest0, rest1, n0, n1, A0, np.zeros(3), u0, float(g_m_s2), sigma,
-                               grid.interval_s, np.zeros(len(count)), angular_acceleration(grid))
+                               grid.interval_s, np.zeros(len(count)))
     start.weight = hand_weights(start_residuals(start, C_m_i_nodes), start)
     return start
 
@@ -193,20 +186,25 @@ def local_mean_square(x: np.ndarray, used: np.ndarray, window: int) -> np.ndarra
         np.convolve(used.astype(float), kernel, "same"), 1.0)
 
 
-def hand_motion(excess: np.ndarray, weight: np.ndarray, start: AccelerometerStart) -> HandMotion:
-    """The hand's acceleration at the solution, from the specific force's size (`specific_force_excess`, n_int):
-    its variance per axis is the excess's mean square over HAND_WINDOW_S less the white part, the hand's
-    acceleration taken as isotropic (along gravity as across it). Not from the residuals: the attitudes absorb a
-    slow hand's acceleration across gravity into a tilt the gyro cannot refute, and the residuals say the hand
-    barely moved (2-3x too little on paper-table1-acc). Its autocorrelation is the turning's angular
-    acceleration's, from the raw gyro (`tapered_autocorrelation`): a hand moves the device as it turns it (the
-    device sits a hand's length from the wrist and the elbow), and nothing else says how slowly it sways."""
+def hand_motion(excess: np.ndarray, weight: np.ndarray, start: AccelerometerStart, residuals: np.ndarray) -> HandMotion:
+    """The hand's acceleration at the solution.
+
+    Its size from the specific force's size (`specific_force_excess`, n_int): its variance per axis is the excess's
+    mean square over HAND_WINDOW_S less the white part, the hand's acceleration taken as isotropic (along gravity
+    as across it). Not from the residuals: the attitudes absorb a slow hand's acceleration across gravity into a
+    tilt the gyro cannot refute, and the residuals say the hand barely moved (2-3x too little on paper-table1-acc).
+    Its autocorrelation from the solved residuals (n_int, 3) whitened by `weight`, over the hand's share of their
+    variance (`tapered_autocorrelation`): what the model leaves correlated, whatever its cause (on BROAD trial 02
+    the halves then agree to 2.9 RMS z, 4.3 with the turning's angular acceleration's autocorrelation instead)."""
     used = weight > 0
     window = max(1, int(round(HAND_WINDOW_S / float(np.median(start.interval_s)))))
     e = np.where(used, excess - (np.mean(excess[used]) if used.any() else 0.0), 0.0)  # less what g or a scale leaves
     hand = np.where(used, np.maximum(local_mean_square(e, used, window) - white_variance(start), 0.0), 0.0)
     max_lag = min(int(used.sum()) // 2, int(round(HAND_MAX_LAG_S / float(np.median(start.interval_s)))))
-    return HandMotion(weight, np.sqrt(hand), tapered_autocorrelation(start.angular_acceleration, max_lag, 1.0))
+    z = (residuals * weight[:, None])[used]
+    total = 1.0 / np.maximum(weight[used], 1e-300) ** 2
+    share = float(np.mean(np.maximum(total - white_variance(start)[used], 0.0) / total))
+    return HandMotion(weight, np.sqrt(hand), tapered_autocorrelation(z, max_lag, share))
 
 
 def tapered_autocorrelation(z: np.ndarray, max_lag: int, hand_share: float) -> np.ndarray:

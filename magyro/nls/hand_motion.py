@@ -54,7 +54,9 @@ def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, re
         weights[-1] = 1.0
     omega = np.einsum("f,fac,fbc->ab", S * weights, F, F.conj()).real / size
     omega -= np.einsum("nac,nbc->ab", counted, counted)           # what I counts as independent
-    return info_inv @ omega @ info_inv
+    value, vector = np.linalg.eigh(omega)
+    omega = (vector * np.maximum(value, 0.0)) @ vector.T          # where the weights counted more hand than measured,
+    return info_inv @ omega @ info_inv                            # the std stays theirs: never below I^-1
 
 
 def hand_sensitivities(problem: JointProblem, x, p, reduced: Reduced, hand_std_m_s2: np.ndarray):

@@ -27,7 +27,8 @@ from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.reduction import gauss_newton_decrement, reduce_hessian
 from magyro.nls.hand_motion import hand_covariance_term
 from magyro.nls.accelerometer import hand_motion, specific_force_excess, white_variance
-from magyro.nls.solve import build_problem, problem_parameters, solve_passes
+from magyro.nls.solve import (build_problem, problem_parameters, residual_matrix, solve_passes,
+                              solved_accelerometer_residuals)
 from magyro.nls.disturbance import disturbance_covariance
 from magyro.nls.variance import secant_factor, variance_components
 from magyro.nls.trajectory import attitude_trajectory, solved_attitudes
@@ -80,10 +81,12 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
 
 def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.ndarray:
     """What the hand's correlated acceleration adds to the corrections' covariance (`magyro.nls.hand_motion`), its
-    std and autocorrelation measured at the solution (`magyro.nls.accelerometer.hand_motion`)."""
+    size and autocorrelation measured at the solution (`magyro.nls.accelerometer.hand_motion`)."""
     A, b = (np.array(v) for v in problem.accelerometer_function(sol.x[: problem.n_theta], sol.p[: problem.n_glob_p])[:2])
     start = lin.accelerometer
-    hand = hand_motion(specific_force_excess(start, A, b.ravel()), sol.acc_weight, start)
+    r = residual_matrix(problem, sol.x, sol.p_casadi) if sol.residuals is None else sol.residuals
+    hand = hand_motion(specific_force_excess(start, A, b.ravel()), sol.acc_weight, start,
+                       solved_accelerometer_residuals(problem, r, sol.acc_weight))
     weights_hand = np.sqrt(np.maximum(1.0 / np.maximum(sol.acc_weight, 1e-300) ** 2 - white_variance(start), 0.0))
     return hand_covariance_term(problem, sol.x, sol.p, reduced, np.linalg.inv(reduced.information), hand.hand_std_m_s2,
                                 weights_hand * (sol.acc_weight > 0), hand.correlation)
