@@ -1,14 +1,16 @@
 """The accelerometer in the joint least squares (issue 26): the targets it is measured against, one table each.
 
-    python benchmarks/accelerometer.py real [--session data/broad-02.parquet]
-    python benchmarks/accelerometer.py sim [--problem paper-table1-acc] [--seeds 20] [--jobs 2]
+    python benchmarks/accelerometer.py real [--session data/broad-02.parquet] [--out docs/numbers/accelerometer-broad-02.json]
+    python benchmarks/accelerometer.py sim [--problem paper-table1-acc] [--seeds 20] [--jobs 2] [--out RECORD]
 
 `real`: the calibrated accelerometer's |f| at the rests against g (each rest of the session, found by the rests'
-own rule), the split halves (each half solved alone; RMS z of the accelerometer's 12 parameters and the gyro's
-12), and the solve's time with and without the accelerometer (CPU s of the solve, second run: kernels cached).
-`sim`: per seed the accelerometer's and the gyro's errors against the truth in reported std, the actual spread
-over the seeds against the mean reported std (reported/actual), and the gyro's std with the accelerometer
-against without it on the same session.
+own rule), the split halves (each half solved alone with --force; RMS z of the accelerometer's 12 parameters and of
+the gyro's 12), the gyro's std with the accelerometer against without, and the solve's CPU time with and without
+it (the median of 3 interleaved runs each, after one run that compiles and caches the kernels).
+`sim`: per noise seed (each seed draws another sway of the hand) the accelerometer's and the gyro's errors against
+the truth in reported std, the actual spread over the seeds against the mean reported std (reported/actual), and
+the gyro's std with the accelerometer against without it on the same session. `--out` writes the record
+docs/accelerometer.md is rendered from (docs/make_accelerometer_numbers.py).
 """
 from __future__ import annotations
 
@@ -19,6 +21,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from machine_load import measured_at, provenance, write_record
 from magyro import calibrate, load_session
 from magyro.front.rests import find_rests
 from magyro.options import Options
@@ -45,47 +48,58 @@ def timed(session, options):
     return cal, time.process_time() - t0
 
 
-def real(path: str) -> None:
+def real(path: str) -> dict:
     s = load_session(path)
     g = Options().gravity_m_s2
     timed(s, Options(accelerometer=True))   # compile and cache the kernels before timing
-    base, t_base = timed(s, Options())
-    cal, t_acc = timed(s, Options(accelerometer=True))
+    t_base, t_acc = [], []
+    for _ in range(3):
+        base, t = timed(s, Options())
+        t_base.append(t)
+        cal, t = timed(s, Options(accelerometer=True))
+        t_acc.append(t)
     acc = cal.accelerometer
-    print(f"session {path}: solve CPU {t_base:.2f} s without the accelerometer, {t_acc:.2f} s with it "
-          f"({t_acc / t_base:.2f}x)")
-    print("rest (s)            |f| (m/s^2)   |f|/g - 1 (%)   raw |y|/g - 1 (%)")
+    rests = []
     for a, b in find_rests(s).segments_s:
         keep = (s.t_acc_s >= a) & (s.t_acc_s <= b)
-        f = np.linalg.norm(acc.apply(s.acc_m_s2[keep]), axis=1).mean()
-        raw = np.linalg.norm(s.acc_m_s2[keep], axis=1).mean()
-        print(f"{a:8.2f}-{b:8.2f}   {f:10.5f}   {100 * (f / g - 1):+10.3f}   {100 * (raw / g - 1):+10.3f}")
+        rests.append({"span_s": [float(a), float(b)],
+                      "f_over_g": float(np.linalg.norm(acc.apply(s.acc_m_s2[keep]), axis=1).mean() / g),
+                      "raw_over_g": float(np.linalg.norm(s.acc_m_s2[keep], axis=1).mean() / g)})
     halves = [calibrate(s.within(*span), Options(accelerometer=True, force=True)) for span in half_spans_s(s)]
     za = (acc_values(halves[0].accelerometer, acc.C_b_a) - acc_values(halves[1].accelerometer, acc.C_b_a)) / np.hypot(
         acc_stds(halves[0].accelerometer), acc_stds(halves[1].accelerometer))
-    v = [gyro_values(h, cal.C_b_m) for h in halves]
-    sd = [gyro_stds(h) for h in halves]
+    v, sd = [gyro_values(h, cal.C_b_m) for h in halves], [gyro_stds(h) for h in halves]
     zg = np.array([(v[0][k] - v[1][k]) / np.hypot(sd[0][k], sd[1][k]) for k in v[0]])
-    print(f"split halves: accelerometer RMS z {np.sqrt(np.mean(za**2)):.2f} (max |z| {np.max(np.abs(za)):.2f}, "
-          f"{ACC_NAMES[int(np.argmax(np.abs(za)))]}); gyro RMS z {np.sqrt(np.mean(zg**2)):.2f}")
-    print("gyro std with/without the accelerometer: "
-          + " ".join(f"{k}={cal_std / base_std:.2f}" for k, cal_std, base_std in
-                     zip(gyro_stds(cal), gyro_stds(cal).values(), gyro_stds(base).values())))
+    return {"session": path, "solve_cpu_s": float(np.median(t_base)), "solve_cpu_s_accelerometer": float(np.median(t_acc)),
+            "rests": rests, "halves_rms_z": float(np.sqrt(np.mean(za**2))), "halves_max_z": float(np.max(np.abs(za))),
+            "halves_worst": ACC_NAMES[int(np.argmax(np.abs(za)))], "halves_gyro_rms_z": float(np.sqrt(np.mean(zg**2))),
+            "gyro_std_ratio": {k: gyro_stds(cal)[k] / gyro_stds(base)[k] for k in gyro_stds(cal)},
+            "K_a_diag": [float(v) for v in np.diag(acc.K_a)], "bias_m_s2": [float(v) for v in acc.bias_m_s2]}
+
+
+def print_real(r: dict) -> None:
+    print(f"session {r['session']}: solve CPU {r['solve_cpu_s']:.2f} s without the accelerometer, "
+          f"{r['solve_cpu_s_accelerometer']:.2f} s with it ({r['solve_cpu_s_accelerometer'] / r['solve_cpu_s']:.2f}x)")
+    print("rest (s)            |f|/g - 1 (%)   raw |y|/g - 1 (%)")
+    for rest in r["rests"]:
+        a, b = rest["span_s"]
+        print(f"{a:8.2f}-{b:8.2f}   {100 * (rest['f_over_g'] - 1):+10.3f}   {100 * (rest['raw_over_g'] - 1):+10.3f}")
+    print(f"split halves: accelerometer RMS z {r['halves_rms_z']:.2f} (max |z| {r['halves_max_z']:.2f}, "
+          f"{r['halves_worst']}); gyro RMS z {r['halves_gyro_rms_z']:.2f}")
+    print("gyro std with/without the accelerometer: " + " ".join(f"{k}={v:.2f}" for k, v in r["gyro_std_ratio"].items()))
 
 
 def one_seed(args):
     problem, seed = args
     from magyro.studies.simulate import simulate
     session, truth = simulate(problem, seed)
-    cal = calibrate(session, Options(accelerometer=True))
-    base = calibrate(session, Options())
-    return cal, base, truth
+    return calibrate(session, Options(accelerometer=True)), calibrate(session, Options()), truth
 
 
-def sim(problem: str, seeds: int, jobs: int) -> None:
-    from magyro.studies.scenario import load_problem
+def sim(problem: str, seeds: int, jobs: int) -> dict:
     from magyro.result.calibration import Calibration
-    from magyro.result.accelerometer import AccelerometerCalibration
+    from magyro.studies.scenario import load_problem
+
     prob = load_problem(problem)
     with ProcessPoolExecutor(jobs) as pool:
         runs = list(pool.map(one_seed, [(prob, seed) for seed in range(seeds)]))
@@ -94,26 +108,32 @@ def sim(problem: str, seeds: int, jobs: int) -> None:
     truth_acc = np.concatenate([[np.asarray(t["K_a"])[i, j] for i, j in UPPER], t["bias_m_s2"], np.zeros(3)])
     est = np.array([acc_values(c.accelerometer, C_ref) for c, _, _ in runs])
     std = np.array([acc_stds(c.accelerometer) for c, _, _ in runs])
-    z = (est - truth_acc) / std
-    actual = est.std(axis=0, ddof=1)
-    print(f"{problem}: {seeds} seeds; accelerometer")
-    print(f"{'parameter':24s} {'mean err':>10s} {'actual':>10s} {'reported':>10s} {'rep/act':>8s} {'max|z|':>7s}")
-    for k, name in enumerate(ACC_NAMES):
-        print(f"{name:24s} {np.mean(est[:, k] - truth_acc[k]):+10.2e} {actual[k]:10.2e} {std[:, k].mean():10.2e} "
-              f"{std[:, k].mean() / actual[k]:8.2f} {np.max(np.abs(z[:, k])):7.2f}")
-    truth_gyro = Calibration.from_parameters(np.asarray(runs[0][2]["gyro"]["K_g"]),
-                                             np.deg2rad(runs[0][2]["gyro"]["bias_deg_s"]),
-                                             np.asarray(runs[0][2]["misalignment"]["C_b_m"]))
+    tg = runs[0][2]
+    truth_gyro = Calibration.from_parameters(np.asarray(tg["gyro"]["K_g"]), np.deg2rad(tg["gyro"]["bias_deg_s"]),
+                                             np.asarray(tg["misalignment"]["C_b_m"]))
     tv = gyro_values(truth_gyro, truth_gyro.C_b_m)
-    gz = np.array([[(gyro_values(c, truth_gyro.C_b_m)[k] - tv[k]) / gyro_stds(c)[k] for k in tv] for c, _, _ in runs])
-    ratio = np.array([[gyro_stds(c)[k] / gyro_stds(b)[k] for k in tv] for c, b, _ in runs])
     gest = np.array([[gyro_values(c, truth_gyro.C_b_m)[k] for k in tv] for c, _, _ in runs])
-    grep = np.array([[gyro_stds(c)[k] for k in tv] for c, _, _ in runs]).mean(axis=0)
-    print("gyro with the accelerometer: max |z| {:.2f}; std with/without: {:.2f}-{:.2f} (median {:.2f}); "
-          "reported/actual {:.2f}-{:.2f}".format(np.max(np.abs(gz)), ratio.min(), ratio.max(), np.median(ratio),
-                                                 (grep / gest.std(axis=0, ddof=1)).min(),
-                                                 (grep / gest.std(axis=0, ddof=1)).max()))
-    del AccelerometerCalibration
+    gstd = np.array([[gyro_stds(c)[k] for k in tv] for c, _, _ in runs])
+    ratio = np.array([[gyro_stds(c)[k] / gyro_stds(b)[k] for k in tv] for c, b, _ in runs])
+    return {"problem": problem, "seeds": seeds, "names": ACC_NAMES,
+            "mean_error": (est - truth_acc).mean(axis=0).tolist(), "actual": est.std(axis=0, ddof=1).tolist(),
+            "reported": std.mean(axis=0).tolist(),
+            "max_abs_z": np.max(np.abs((est - truth_acc) / std), axis=0).tolist(),
+            "max_abs_error": np.max(np.abs(est - truth_acc), axis=0).tolist(),
+            "gyro_names": list(tv), "gyro_max_abs_z": np.max(np.abs((gest - np.array(list(tv.values()))) / gstd), axis=0).tolist(),
+            "gyro_reported_over_actual": (gstd.mean(axis=0) / gest.std(axis=0, ddof=1)).tolist(),
+            "gyro_std_ratio_median": np.median(ratio, axis=0).tolist(), "gyro_std_ratio_max": ratio.max(axis=0).tolist()}
+
+
+def print_sim(r: dict) -> None:
+    print(f"{r['problem']}: {r['seeds']} seeds; accelerometer")
+    print(f"{'parameter':24s} {'mean err':>10s} {'actual':>10s} {'reported':>10s} {'rep/act':>8s} {'max|z|':>7s}")
+    for k, name in enumerate(r["names"]):
+        print(f"{name:24s} {r['mean_error'][k]:+10.2e} {r['actual'][k]:10.2e} {r['reported'][k]:10.2e} "
+              f"{r['reported'][k] / r['actual'][k]:8.2f} {r['max_abs_z'][k]:7.2f}")
+    ratio, roa = np.array(r["gyro_std_ratio_max"]), np.array(r["gyro_reported_over_actual"])
+    print(f"gyro with the accelerometer: max |z| {max(r['gyro_max_abs_z']):.2f}; std with/without: median "
+          f"{np.median(r['gyro_std_ratio_median']):.2f}, max {ratio.max():.2f}; reported/actual {roa.min():.2f}-{roa.max():.2f}")
 
 
 def main(argv=None) -> None:
@@ -123,8 +143,19 @@ def main(argv=None) -> None:
     ap.add_argument("--problem", default="paper-table1-acc")
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--out", help="write the record here (docs/numbers/accelerometer-*.json)")
     a = ap.parse_args(argv)
-    real(a.session) if a.what == "real" else sim(a.problem, a.seeds, a.jobs)
+    command = "python benchmarks/accelerometer.py " + " ".join(argv or [])
+    if a.what == "real":
+        record = real(a.session)
+        print_real(record)
+        record["provenance"] = provenance(command)
+    else:
+        record = sim(a.problem, a.seeds, a.jobs)
+        print_sim(record)
+        record["provenance"] = measured_at(command)
+    if a.out:
+        write_record(a.out, record)
 
 
 if __name__ == "__main__":

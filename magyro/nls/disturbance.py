@@ -177,15 +177,14 @@ class ThetaRows:
         self.data = p[problem.n_glob_p :].reshape(problem.n_int, problem.n_data)
         self.maps = {}
 
-    def __call__(self, n: slice, columns: slice | None = None) -> np.ndarray:
-        """(m, residuals, n_theta) of the `columns` of each interval's residuals (default: the magnetometer's)."""
+    def __call__(self, n: slice) -> np.ndarray:
         problem, m = self.problem, n.stop - n.start
         if m not in self.maps:
             self.maps[m] = problem.gn_kernel.map(m)
         JthT = self.maps[m](self.theta, ca.DM(self.states[n].T), ca.DM(self.states[n.start + 1 : n.stop + 1].T),
                             self.g, ca.DM(self.data[n].T))[0]
         rows = np.array(JthT).reshape(problem.n_theta, m, problem.n_res_per_interval)   # interval-major columns
-        return np.transpose(rows[:, :, slice(0, 3 * problem.grid.stride) if columns is None else columns], (1, 2, 0))
+        return np.transpose(rows[:, :, : 3 * problem.grid.stride], (1, 2, 0))
 
 
 class ExponentialDoubleSum:

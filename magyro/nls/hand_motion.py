@@ -21,13 +21,11 @@ import casadi as ca
 import numpy as np
 
 from magyro import so3
-from magyro.nls.disturbance import ThetaRows
 from magyro.nls.interval import data_layout
 from magyro.nls.problem import JointProblem
 from magyro.nls.reduction import Reduced
 
 CHUNK = 1024   # intervals per piece of the sensitivities
-NODE_STEP = 1e-6
 
 
 def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, reduced: Reduced, info_inv: np.ndarray,
@@ -61,17 +59,24 @@ def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, re
 
 def hand_sensitivities(problem: JointProblem, x, p, reduced: Reduced, hand_std_m_s2: np.ndarray):
     """Pieces, in time order, of U_j (m, n_theta, 3) for every interval (zero where it carries no accelerometer
-    mean or the hand is still)."""
-    grid, B, G = problem.grid, problem.B, problem.n_theta
+    mean or the hand is still), from the accelerometer's own Jacobian kernel."""
+    B, G = problem.B, problem.n_theta
     W = np.concatenate([np.zeros((1, B, G)), reduced.Dinv_Hpt.reshape(problem.n_int, B, -1)[:-1]])
-    first = 3 * grid.stride + 3 + (3 if problem.walk else 0)
-    columns = slice(first, first + 3)
-    rows_of = ThetaRows(problem, x, p)
-    weight = rows_of.data[:, data_offset(problem, "w_acc")]
+    theta, g = ca.DM(x[:G]), ca.DM(p[: problem.n_glob_p])
+    states = np.vstack([np.zeros(B), x[G:].reshape(-1, B)])                  # nodes 0..n_int
+    data = p[problem.n_glob_p :].reshape(problem.n_int, problem.n_data)
+    weight = data[:, data_offset(problem, "w_acc")]
+    maps = {}
     for a in range(0, problem.n_int, CHUNK):
         n = slice(a, min(a + CHUNK, problem.n_int))
-        J_profiled = rows_of(n, columns) - start_node_jacobian(problem, rows_of, n, columns) @ W[n]   # (m, 3, G)
-        L = (weight[n] * hand_std_m_s2[n])[:, None, None] * attitude_i_to_m(rows_of, n)             # (m, 3, 3)
+        m = n.stop - a
+        if m not in maps:
+            maps[m] = problem.accelerometer_jacobian.map(m)
+        J_theta, J_node = maps[m](theta, ca.DM(states[n].T), ca.DM(states[a + 1 : n.stop + 1].T), g, ca.DM(data[n].T))
+        J_theta = np.array(J_theta).reshape(3, m, G).transpose(1, 0, 2)       # (m, 3, G): blocks side by side
+        J_node = np.array(J_node).reshape(3, m, B).transpose(1, 0, 2)         # (m, 3, B)
+        J_profiled = J_theta - J_node @ W[n]
+        L = (weight[n] * hand_std_m_s2[n])[:, None, None] * attitude_i_to_m(data[n], states[n])   # (m, 3, 3)
         yield np.swapaxes(J_profiled, -1, -2) @ L
 
 
@@ -85,24 +90,7 @@ def data_offset(problem: JointProblem, name: str) -> int:
     raise KeyError(name)
 
 
-def start_node_jacobian(problem: JointProblem, rows_of: ThetaRows, n: slice, columns: slice) -> np.ndarray:
-    """d r / d s_k of the interval residuals `columns` with respect to their start node's state, (m, 3, B), by
-    central differences of the residual kernel."""
-    m = n.stop - n.start
-    f = problem.residual_kernel.map(m)
-    s_k, s_k1 = rows_of.states[n].T, ca.DM(rows_of.states[n.start + 1 : n.stop + 1].T)
-    data = ca.DM(rows_of.data[n].T)
-    out = np.empty((m, columns.stop - columns.start, problem.B))
-    for b in range(problem.B):
-        step = np.zeros((problem.B, 1))
-        step[b] = NODE_STEP
-        plus = np.array(f(rows_of.theta, ca.DM(s_k + step), s_k1, rows_of.g, data))
-        minus = np.array(f(rows_of.theta, ca.DM(s_k - step), s_k1, rows_of.g, data))
-        out[:, :, b] = ((plus - minus) / (2 * NODE_STEP))[columns, :].T
-    return out
-
-
-def attitude_i_to_m(rows_of: ThetaRows, n: slice) -> np.ndarray:
-    """C_i^m at each interval's start node, (m, 3, 3): (Cbar Exp(phi))^T."""
-    Cbar = rows_of.data[n, :9].reshape(-1, 3, 3).transpose(0, 2, 1)   # column-major vec of each Cbar
-    return np.swapaxes(Cbar @ so3.exp_so3(rows_of.states[n, :3]), -1, -2)
+def attitude_i_to_m(data: np.ndarray, states: np.ndarray) -> np.ndarray:
+    """C_i^m at each interval's start node, (m, 3, 3): (Cbar Exp(phi))^T, from the intervals' data and start states."""
+    Cbar = data[:, :9].reshape(-1, 3, 3).transpose(0, 2, 1)   # column-major vec of each Cbar
+    return np.swapaxes(Cbar @ so3.exp_so3(states[:, :3]), -1, -2)

@@ -13,7 +13,8 @@ from pathlib import Path
 
 from magyro.nls.grid import STRIDES
 from magyro.nls.kernels import build_libraries, find_compiler, generate_c, library_name
-from magyro.nls.interval import N_ACC_THETA, N_GLOBAL, interval_kernels, kernel_key
+from magyro.nls.interval import (N_ACC_THETA, N_GLOBAL, accelerometer_jacobian_kernel, has_accelerometer,
+                                 interval_kernels, kernel_key)
 
 
 def installed_shapes() -> list[tuple[int, int, int, bool]]:
@@ -30,6 +31,7 @@ def install_kernels(folder: Path) -> list[Path]:
     jobs = []
     for shape in installed_shapes():
         key = kernel_key(*shape)
-        jobs += [(generate_c(fn), folder / library_name(fn.name(), key)) for fn in interval_kernels(*shape)]
+        fns = interval_kernels(*shape) + ([accelerometer_jacobian_kernel(*shape)] if has_accelerometer(shape[2]) else [])
+        jobs += [(generate_c(fn), folder / library_name(fn.name(), key)) for fn in fns]
     built = build_libraries(jobs)
     return [lib for (_, lib), ok in zip(jobs, built) if ok]

@@ -239,6 +239,30 @@ def node_columns(theta_rows, previous_rows, own_rows):
                         for c in range(own_rows.shape[1])])
 
 
+def accelerometer_jacobian_kernel(stride: int, L: int, n_theta: int, walk: bool = False) -> ca.Function:
+    """d r / d theta (3 x n_theta) and d r / d s_k (3 x B) of an interval's accelerometer mean residual (the hand's
+    sandwich, nls/hand_motion.py): its own small kernel, not the Gauss-Newton one's rows."""
+    th = ca.SX.sym("theta", n_theta)
+    pk, pk1 = ca.SX.sym("s_k", node_size(walk)), ca.SX.sym("s_k1", node_size(walk))
+    g = ca.SX.sym("g", global_size(True))
+    d = ca.SX.sym("d", sum(k for _, k in data_layout(stride, L, walk, True)))
+    r = interval_residuals(th, pk, pk1, g, d, stride, L, walk, True)
+    first = 3 * stride + 3 + (3 if walk else 0)
+    mean = r[first : first + 3]
+    return ca.Function("interval_accelerometer_jacobian", [th, pk, pk1, g, d],
+                       [ca.jacobian(mean, th), ca.jacobian(mean, pk)])
+
+
+def accelerometer_jacobian(stride: int, L: int, n_theta: int, walk: bool, compiled: bool = True) -> ca.Function:
+    """`accelerometer_jacobian_kernel`, compiled (installed, cached or compiled now) when `compiled`."""
+    key = kernel_key(stride, L, n_theta, walk)
+    cached = load_cached_kernel("interval_accelerometer_jacobian", key) if compiled else None
+    if cached is not None:
+        return cached
+    fn = accelerometer_jacobian_kernel(stride, L, n_theta, walk)
+    return compile_kernels([fn], key)[0] if compiled else fn
+
+
 def kernel_key(stride: int, L: int, n_theta: int, walk: bool) -> str:
     """What determines the kernels completely (with the source of this module, see kernels.cache_digest)."""
     return f"stride={stride} substeps={L} theta={n_theta}" + (" walk" if walk else "")

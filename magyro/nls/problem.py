@@ -42,8 +42,9 @@ import numpy as np
 
 from magyro import so3
 from magyro.nls.grid import Grid, gyro_at_mag_midpoints
-from magyro.nls.interval import (ACC_GLOBAL_LAYOUT, GLOBAL_LAYOUT, N_ACC_THETA, N_GLOBAL, NO_HUBER, data_layout,
-                                 global_size, kernel_key, kernel_set, node_size, unpack_accelerometer, unpack_globals)
+from magyro.nls.interval import (ACC_GLOBAL_LAYOUT, GLOBAL_LAYOUT, N_ACC_THETA, N_GLOBAL, NO_HUBER,
+                                 accelerometer_jacobian, data_layout, global_size, kernel_key, kernel_set, node_size,
+                                 unpack_accelerometer, unpack_globals)
 
 HOLE_LINK_STD_RAD = 0.1   # across a hole in the gyro record the attitudes are linked this loosely (a gauge only)
 
@@ -79,6 +80,7 @@ class JointProblem:
     def __init__(self, grid: Grid, compiled: bool = True, estimate_time_offset: bool = True, huber: float | None = None,
                  walk_density: float | None = None, accelerometer: bool = False):
         self.grid = grid
+        self.compiled = compiled
         self.walk_density = walk_density
         self.huber = huber
         self.walk = walk = walk_density is not None
@@ -127,6 +129,12 @@ class JointProblem:
         x, p, args = self._symbols
         r = ca.vec(self.residual_kernel.map(self.n_int)(*args))
         return ca.Function("residuals", [x, p], [r]), 0.5 * ca.sumsqr(r)
+
+    @cached_property
+    def accelerometer_jacobian(self) -> ca.Function:
+        """d r / d theta and d r / d s_k of each interval's accelerometer mean (interval.accelerometer_jacobian)."""
+        g = self.grid
+        return accelerometer_jacobian(g.stride, g.substeps, self.n_theta, self.walk, self.compiled)
 
     @property
     def residual_function(self) -> ca.Function:
