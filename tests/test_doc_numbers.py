@@ -22,6 +22,7 @@ records = load_script(DOCS / "make_record_numbers.py")
 table1 = load_script(DOCS / "make_table1_numbers.py")
 observability = load_script(DOCS / "make_observability_table.py")
 ekf_page = load_script(DOCS / "make_ekf_numbers.py")
+accelerometer_page = load_script(DOCS / "make_accelerometer_numbers.py")
 real_data = load_script(DOCS / "real_data_numbers.py")
 readme_records = load_script(DOCS / "readme_record_numbers.py")
 BROAD = DOCS.parent.parent / "shared" / "data" / "broad"
@@ -155,6 +156,22 @@ def test_ekf_page_is_rendered_from_its_records():
     made = ekf_page.blocks()
     assert_fresh(ekf_page, made)
     assert_every_block_generated(ekf_page, made)
+
+
+def test_accelerometer_page_is_rendered_from_its_records():
+    made = accelerometer_page.blocks()
+    assert_fresh(accelerometer_page, made)
+    assert_every_block_generated(accelerometer_page, made)
+
+
+def test_a_changed_accelerometer_record_changes_its_page():
+    text = accelerometer_page.PAGE.read_text(encoding="utf-8")
+    sim = blocks_module.read_record(accelerometer_page.SIM_RECORDS["acc-sim-paper"])
+    sim["reported"][7] *= 2.0                    # bias_y's reported std
+    assert accelerometer_page.sim_table(sim) != blocks_module.block_in_page(text, "acc-sim-paper")
+    real = blocks_module.read_record(accelerometer_page.REAL_RECORD)
+    real["halves_rms_z"] += 1.0
+    assert accelerometer_page.real_block(real) != blocks_module.block_in_page(text, "acc-broad-02")
 
 
 def test_a_changed_ekf_record_changes_its_tables():
