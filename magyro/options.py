@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+STANDARD_GRAVITY_M_S2 = 9.80665   # 1 g: the unit g and mg are read in, and the default local gravity
+
 
 @dataclass(frozen=True)
 class StdBounds:
@@ -74,7 +76,7 @@ class Options:
     max_std: StdBounds = StdBounds()        # the refusal bound: the gate refuses above it (force: solve anyway)
     repairs: Repairs = Repairs()            # what the recording check may repair (restamps, held, saturation, spikes)
     accelerometer: bool = False             # the accelerometer joins the least squares (issue 26; needs ax ay az)
-    gravity_m_s2: float = 9.80665           # the local gravity the accelerometer is calibrated against
+    gravity_m_s2: float = STANDARD_GRAVITY_M_S2   # the local gravity the accelerometer is calibrated against
 
     @classmethod
     def in_user_units(cls, gyro_noise_deg_s_sqrt_hz: float | None = None, mag_noise_std: float | None = None,

@@ -12,14 +12,9 @@ from magyro import so3
 from magyro.errors import InputError
 from magyro.io.toml_file import read_toml
 from magyro.studies.scenario import PROBLEMS_DIR, load_problem, parse_problem
-from magyro.studies.simulate import (
-    acc_clean,
-    simulate,
-    truth_acceleration,
-    truth_body_attitude,
-    truth_position,
-    translation_span,
-)
+from magyro.studies.hand import acc_clean, translation_span, truth_acceleration, truth_position
+from magyro.studies.motion import truth_body_attitude
+from magyro.studies.simulate import simulate
 
 ACC_PROBLEMS = ["paper-table1-acc", "phone-module-acc"]
 

@@ -6,6 +6,8 @@ from typing import List, Optional
 
 import typer
 
+from magyro.options import STANDARD_GRAVITY_M_S2
+
 from magyro.cli.common import (NO_REPAIR_HELP, TARGET_BIAS_OPTION, TARGET_MISALIGNMENT_OPTION, TARGET_NONORTH_OPTION,
                                TARGET_SCALE_OPTION, TARGETS_OPTION, fail, gyro_noise_density, gyro_noise_help,
                                run_guarded)
@@ -27,7 +29,7 @@ def batch(
     reports: bool = typer.Option(False, "--reports", help="Also write each device's HTML report into reports/ (needs magyro[plot]; slower)."),
     split_check: bool = typer.Option(False, "--split-check", help="Also calibrate each half of every recording alone (about 2x the time); gives the split_rms_z column."),
     accelerometer: bool = typer.Option(False, "--accelerometer/--no-accelerometer", help="Calibrate each device's accelerometer (ax ay az, m/s^2) in the same least squares (as magyro solve --accelerometer): gives the acc_* columns the max_*_acc_* limits bound (default: off)."),
-    gravity: float = typer.Option(9.80665, "--gravity", min=9.7, max=9.9, help="The local gravity in m/s^2 the accelerometers are calibrated against."),
+    gravity: float = typer.Option(STANDARD_GRAVITY_M_S2, "--gravity", min=9.7, max=9.9, help="The local gravity in m/s^2 the accelerometers are calibrated against."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the files' metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
     gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", parser=gyro_noise_density, metavar="DENSITY", help=gyro_noise_help("estimated per device")),

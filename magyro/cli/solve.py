@@ -6,6 +6,8 @@ from typing import List, Optional
 
 import typer
 
+from magyro.options import STANDARD_GRAVITY_M_S2
+
 from magyro.cli.common import gyro_noise_density, gyro_noise_help, NO_REPAIR_HELP, run_guarded
 from magyro.options import Repairs, StdBounds
 
@@ -34,7 +36,7 @@ def solve(
     history_plot: Optional[Path] = typer.Option(None, "--history-plot", help="--method ekf: plot them like the paper's Fig. 3/6/7 (needs magyro[plot])."),
     trajectory: Optional[Path] = typer.Option(None, "--trajectory", help="--method nls: write the solved attitude at the nodes (quaternion C_m_i and its std) and the calibrated field (Parquet)."),
     accelerometer: bool = typer.Option(False, "--accelerometer/--no-accelerometer", help="--method nls: calibrate the accelerometer (ax ay az, m/s^2) in the same least squares: K_a, bias, C_b_a against gravity (default: off)."),
-    gravity: float = typer.Option(9.80665, "--gravity", min=9.7, max=9.9, help="The local gravity in m/s^2 the accelerometer is calibrated against."),
+    gravity: float = typer.Option(STANDARD_GRAVITY_M_S2, "--gravity", min=9.7, max=9.9, help="The local gravity in m/s^2 the accelerometer is calibrated against."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
 ):
     """The joint calibration: magnetometer ellipsoid, gyro K_g, bias, misalignment, field, attitude.

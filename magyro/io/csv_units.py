@@ -9,13 +9,14 @@ from __future__ import annotations
 
 from magyro.errors import InputError
 from magyro.io.checks import canonical_gyro_unit
+from magyro.options import STANDARD_GRAVITY_M_S2
 
 TIME_UNITS = {"s": 1.0, "sec": 1.0, "second": 1.0, "seconds": 1.0,
               "ms": 1e-3, "msec": 1e-3, "millisecond": 1e-3, "milliseconds": 1e-3,
               "us": 1e-6, "µs": 1e-6, "μs": 1e-6, "usec": 1e-6, "microsecond": 1e-6, "microseconds": 1e-6,
               "ns": 1e-9, "nsec": 1e-9, "nanosecond": 1e-9, "nanoseconds": 1e-9}
 ACC_UNITS = {"m/s^2": 1.0, "m/s2": 1.0, "m/s²": 1.0, "m/s/s": 1.0, "mps2": 1.0,
-             "g": 9.80665, "mg": 9.80665e-3}
+             "g": STANDARD_GRAVITY_M_S2, "mg": 1e-3 * STANDARD_GRAVITY_M_S2}
 # the magnetometer keeps its unit (results come back in it); these are the labels accepted
 MAG_UNITS = {"ut": "uT", "µt": "uT", "μt": "uT", "microtesla": "uT", "nt": "nT", "nanotesla": "nT",
              "mt": "mT", "millitesla": "mT", "t": "T", "tesla": "T",
@@ -23,7 +24,6 @@ MAG_UNITS = {"ut": "uT", "µt": "uT", "μt": "uT", "microtesla": "uT", "nt": "nT
              "counts": "counts", "count": "counts", "lsb": "counts", "raw": "counts", "adc": "counts",
              "a.u.": "a.u.", "au": "a.u.", "arb": "a.u.", "unitless": "unitless", "1": "unitless",
              "unknown": "unknown"}
-STANDARD_GRAVITY_M_S2 = 9.80665
 # what an accelerometer that holds gravity reads as its median |a| in each unit: how `--acc-unit auto` and the
 # recording check (magyro.front.accelerometer_checks) tell the unit
 GRAVITY_READS = {"g": (0.5, 2.0), "m/s^2": (4.9, 20.0), "mg": (500.0, 2000.0)}

@@ -31,7 +31,6 @@ from magyro.nls.grid import Grid
 from magyro.result.reported import qr_split
 from magyro.session import HOLE_FACTOR
 
-STANDARD_GRAVITY_M_S2 = 9.80665
 HAND_WINDOW_S = 1.0          # the hand's acceleration variance is measured over this window
 HAND_MAX_LAG_S = 30.0        # its autocorrelation is measured up to this lag (a hand's slowest sway)
 

@@ -33,6 +33,9 @@ from magyro.errors import InputError
 from magyro.io.toml_file import read_toml
 from magyro.studies.sizes import check_sizes
 from magyro.text import file_name
+from magyro.studies.problem_values import (_non_negative, _number, _positive, _string, _upper_triangular,  # noqa: F401
+                                          _vector, _vector3)
+from magyro.studies.scenario_accelerometer import ACCELEROMETER_KEYS, Accelerometer, _parse_accelerometer  # noqa: F401
 
 
 # the problems shipped with magyro: installed as package data (magyro/problems), or the
@@ -69,7 +72,7 @@ class Motion:
 @dataclass(frozen=True, eq=False)
 class Turn:
     """One step of a "turns" motion: a turn by `angle_deg` about the unit body axis `axis` in `seconds`
-    (a minimum-jerk angle profile, `simulate.smoothstep`), or a rest of `seconds` (axis None, angle 0)."""
+    (a minimum-jerk angle profile, `motion.smoothstep`), or a rest of `seconds` (axis None, angle 0)."""
 
     axis: np.ndarray | None            # (3,) unit, gyro frame; None for a rest
     angle_deg: float                   # signed, right-hand rule about axis; 0 for a rest
@@ -121,40 +124,6 @@ SPREAD_KEYS = ("scale_ppm", "nonorthogonality_deg", "bias_deg_s", "misalignment_
 SPREAD_MAX_RELATIVE = {"scale_ppm": 1e5, "soft_iron": 0.1}
 
 
-STANDARD_GRAVITY_M_S2 = 9.80665   # what 1 g (and so 1 ug of noise density) is, whatever the problem's local g
-
-
-@dataclass(frozen=True, eq=False)
-class Accelerometer:
-    """The ``[accelerometer]`` section: an accelerometer sampled at the gyro's times (docs/spec.md conventions).
-
-    It measures the specific force f = a - g_vec (at rest f^w = (0, 0, +g)) in its own frame a:
-    f^a = K_a y_a + eps_a, f^a = C_b^a f^b, so y_a = K_a^-1 (C_b^a C_w^b (a^w - g_vec) - eps_a) + n_a.
-    The device's position moves by about `hand_translation_m` per world axis (`magyro.studies.simulate`).
-    """
-
-    K_a: np.ndarray                      # (3, 3) upper triangular, positive diagonal (scale, non-orthogonality)
-    bias_m_s2: np.ndarray                # (3,) eps_a, accelerometer frame
-    misalignment_euler_deg: np.ndarray   # (3,) [roll, pitch, yaw] of C_b^a (gyro -> accelerometer)
-    noise_density_ug_sqrt_hz: float      # white noise density, micro-g per sqrt(Hz)
-    g_m_s2: float = STANDARD_GRAVITY_M_S2   # the local gravity's magnitude
-    hand_translation_m: float = 0.0      # peak of the device's position on each world axis (0: turned in place)
-
-    @property
-    def C_b_a(self) -> np.ndarray:
-        return so3.euler_to_dcm(self.misalignment_euler_deg)
-
-    @property
-    def noise_density_m_s2_sqrt_hz(self) -> float:
-        return 1e-6 * STANDARD_GRAVITY_M_S2 * self.noise_density_ug_sqrt_hz
-
-    def sample_std_m_s2(self, rate_hz: float) -> float:
-        """Per-sample std of n_a at `rate_hz`: density * sqrt(rate), as the gyro's."""
-        return self.noise_density_m_s2_sqrt_hz * math.sqrt(rate_hz)
-
-
-ACCELEROMETER_KEYS = {"K_a": True, "bias_m_s2": True, "misalignment_euler_deg": False,
-                      "noise_density_ug_sqrt_hz": True, "g_m_s2": False, "hand_translation_m": False}
 
 
 @dataclass(frozen=True, eq=False)
@@ -419,18 +388,6 @@ def _parse_spread(sp: dict, where: str) -> Spread:
     return Spread(**values)
 
 
-def _parse_accelerometer(acc: dict, where: str) -> Accelerometer:
-    return Accelerometer(
-        K_a=_upper_triangular(acc["K_a"], where, "K_a"),
-        bias_m_s2=_vector3(acc["bias_m_s2"], where, "bias_m_s2"),
-        misalignment_euler_deg=_vector3(acc.get("misalignment_euler_deg", [0.0, 0.0, 0.0]), where,
-                                        "misalignment_euler_deg"),
-        noise_density_ug_sqrt_hz=_non_negative(acc["noise_density_ug_sqrt_hz"], where, "noise_density_ug_sqrt_hz"),
-        g_m_s2=_positive(acc.get("g_m_s2", STANDARD_GRAVITY_M_S2), where, "g_m_s2"),
-        hand_translation_m=_non_negative(acc.get("hand_translation_m", 0.0), where, "hand_translation_m"),
-    )
-
-
 def _check_consistency(problem: Scenario, source: str) -> None:
     m = problem.motion
     check_sizes(problem.duration_s, {"gyro": problem.gyro_rate_hz, "magnetometer": problem.mag_rate_hz},
@@ -465,50 +422,3 @@ def _check_consistency(problem: Scenario, source: str) -> None:
     if active < 2.0 * m.ramp_s * slots:
         raise InputError(f"{source} [motion]: {active:g} s of motion between the rests cannot hold "
                          f"{slots} slot(s) with {m.ramp_s:g} s ramps at both ends")
-
-
-def _number(value, where: str, key: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise InputError(f"{where}: {key} must be a finite number, got {value!r}")
-    return float(value)
-
-
-def _positive(value, where: str, key: str) -> float:
-    x = _number(value, where, key)
-    if x <= 0:
-        raise InputError(f"{where}: {key} must be positive, got {value!r}")
-    return x
-
-
-def _non_negative(value, where: str, key: str) -> float:
-    x = _number(value, where, key)
-    if x < 0:
-        raise InputError(f"{where}: {key} must be non-negative, got {value!r}")
-    return x
-
-
-def _string(value, where: str, key: str) -> str:
-    if not isinstance(value, str):
-        raise InputError(f"{where}: {key} must be a string, got {value!r}")
-    return value
-
-
-def _vector(value, where: str, key: str, n: int) -> np.ndarray:
-    if not isinstance(value, list) or len(value) != n:
-        raise InputError(f"{where}: {key} must be a list of {n} numbers, got {value!r}")
-    return np.array([_number(v, where, key) for v in value])
-
-
-def _vector3(value, where: str, key: str) -> np.ndarray:
-    return _vector(value, where, key, 3)
-
-
-def _upper_triangular(value, where: str, key: str) -> np.ndarray:
-    if not isinstance(value, list) or len(value) != 3 or any(not isinstance(r, list) for r in value):
-        raise InputError(f"{where}: {key} must be a 3x3 list of lists, got {value!r}")
-    M = np.array([_vector3(row, where, key) for row in value])
-    if np.any(np.tril(M, -1) != 0.0):
-        raise InputError(f"{where}: {key} must be upper triangular (zeros below the diagonal), got {M.tolist()}")
-    if np.any(np.diag(M) <= 0.0):
-        raise InputError(f"{where}: {key} must have a positive diagonal, got {np.diag(M).tolist()}")
-    return M
