@@ -298,8 +298,8 @@ def test_streaming_rejects_time_going_backwards():
 
 
 def test_search_lag_takes_the_vertex_and_curvature_of_the_likelihood():
-    """On a known -log L: the vertex and 1/sqrt(curvature), walking there from a start 5 ms off; None when the
-    likelihood has no minimum within +/-0.1 s."""
+    """On a known -log L: the vertex and 1/sqrt(curvature), walking there from a start 5 ms off, straight from
+    three runs around a start 0.7 ms off; None when the likelihood has no minimum within +/-0.1 s."""
     from magyro.ekf.lag import MAX_LAG_S, search_lag
 
     lag_s, std_s = 5.3e-3, 0.2e-3
@@ -315,6 +315,8 @@ def test_search_lag_takes_the_vertex_and_curvature_of_the_likelihood():
     assert found.below[0] < found.lag_s < found.above[0] and found.above[0] - found.below[0] == pytest.approx(2e-3)
     assert found.sensitivity(lambda x, run: np.array([2.0 * run, x])) == pytest.approx([2.0, 1.0])
     assert found.runs == len(tried) - 1 <= 12
+    near = search_lag(run_at, lag_s + 0.7e-3, run_at(lag_s + 0.7e-3))         # within the first three: no walk
+    assert near.runs == 2 and near.lag_s == pytest.approx(lag_s, abs=0.02 * std_s)
     assert search_lag(lambda x: (-x, None), 0.0, (0.0, None)) is None               # falls on to +0.1 s
     assert all(abs(x) <= MAX_LAG_S for x in tried)
 

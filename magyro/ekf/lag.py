@@ -14,7 +14,7 @@ integrated out by the filter itself:
 the gyro's span (`likelihood_span`), which every lag tried keeps inside it. Near its minimum -log L is a
 parabola in the lag: its vertex is the lag, the inverse of its curvature (the observed information) the lag's
 variance. `search_lag` runs the filter at eq. (13)'s lag and LAG_STEP_S either side, and fits the parabola
-through the three when the middle one is the lowest (else it walks to the minimum first).
+through the three when its vertex lies between them (else it walks to the minimum first).
 
 The filter's covariance is the parameters' covariance given the lag. The lag's own variance adds, by the law of
 total covariance, var g g^T, with g the reported parameters' change per second of lag, a central difference
@@ -22,6 +22,7 @@ between the runs at the two neighbours (`LagEstimate.sensitivity`, `magyro.ekf.u
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -58,11 +59,11 @@ def likelihood_span(t_gyro_s: np.ndarray) -> tuple[float, float]:
 
 
 def parabola_vertex(x: tuple[float, float, float], f: tuple[float, float, float]) -> tuple[float, float]:
-    """(vertex, second derivative) of the parabola through (x_i, f_i), x increasing."""
+    """(vertex, second derivative) of the parabola through (x_i, f_i), x increasing (vertex nan on a line)."""
     d1 = (f[1] - f[0]) / (x[1] - x[0])
     d2 = (f[2] - f[1]) / (x[2] - x[1])
     curvature = 2.0 * (d2 - d1) / (x[2] - x[0])
-    return 0.5 * (x[0] + x[1]) - d1 / curvature, curvature
+    return (0.5 * (x[0] + x[1]) - d1 / curvature if curvature else math.nan), curvature
 
 
 class _Enough(Exception):
@@ -74,12 +75,14 @@ def search_lag(run_at: Callable[[float], tuple[float, Any]], lag0_s: float, firs
     """The lag at the vertex of -log L, from runs of the filter: run_at(lag_s) -> (-log L, what the run gave);
     `first` is the run at lag0_s.
 
-    The parabola is taken through three runs LAG_STEP_S apart whose middle one is the lowest. While the middle
-    one is not, the search steps outward from the lower side, doubling its step, until the likelihood rises
-    again, and centres the next three runs on the vertex of the parabola through the lowest run and its two
-    neighbours (far from its minimum -log L is no parabola: through runs 4 and 8 ms apart its curvature was
-    2.5 times too small, its vertex still within 0.1 ms). None when that takes more than MAX_LAG_RUNS runs or
-    leaves +/- MAX_LAG_S (the likelihood does not bracket a lag)."""
+    The parabola is taken through three runs LAG_STEP_S apart, centred on lag0_s, when its vertex lies between
+    the outer two (there -log L is a parabola: on BROAD 02 the three runs around eq. 13's lag put the vertex
+    where three runs centred on it do, to 1e-3 ms). When it does not, the search steps outward from the lower
+    side, doubling its step, until the likelihood rises again, and centres the next three runs on the vertex
+    of the parabola through the lowest run and its two neighbours (far from its minimum -log L is no
+    parabola: through runs 4 and 8 ms apart its curvature was 2.5 times too small, its vertex still within
+    0.1 ms). None when that takes more than MAX_LAG_RUNS runs or leaves +/- MAX_LAG_S (the likelihood does not
+    bracket a lag)."""
     runs = {lag0_s: first}
 
     def at(lag_s: float) -> float:
@@ -94,7 +97,8 @@ def search_lag(run_at: Callable[[float], tuple[float, Any]], lag0_s: float, firs
         while True:
             x = (centre - step_s, centre, centre + step_s)
             f = tuple(at(v) for v in x)
-            if f[1] < f[0] and f[1] < f[2]:
+            vertex, curvature = parabola_vertex(x, f)
+            if curvature > 0.0 and x[0] <= vertex <= x[2]:
                 break
             side = -1.0 if f[0] < f[2] else 1.0
             walked, step = [centre, centre + side * step_s], step_s
@@ -110,6 +114,5 @@ def search_lag(run_at: Callable[[float], tuple[float, Any]], lag0_s: float, firs
             centre = parabola_vertex(bracket, tuple(at(v) for v in bracket))[0]
     except _Enough:
         return None
-    vertex, curvature = parabola_vertex(x, f)
     return LagEstimate(float(vertex), float(curvature ** -0.5), (x[0], runs[x[0]][1]), (x[2], runs[x[2]][1]),
                        len(runs) - 1)
