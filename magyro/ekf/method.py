@@ -147,7 +147,7 @@ class EKF:
         omega = disturbance_covariance(filt.room, room) if filt.room is not None else None
         filt.room = filt.innovations = None   # the recorded entries are large; the covariance is all that is kept
         cal = assemble(filt, prep, init, filter_s, time.perf_counter() - t_start, tau, room, omega, sigma_mag, lag,
-                       len(filter_runs))
+                       len(filter_runs), lag0)
         cal.warnings.extend(gate_warnings + warnings)
         return cal, history
 
@@ -257,7 +257,7 @@ def magnetometer_lag(s: Session, ref, prep: Prepared, options: Options) -> float
 
 def assemble(filt: StreamingCalibrator, prep: Prepared, init: Initial, filter_s: float, total_s: float,
              tau: float, room: FieldDisturbance, omega: np.ndarray | None, sigma_mag: float,
-             lag: LagEstimate | None = None, filter_runs: int = 1) -> Calibration:
+             lag: LagEstimate | None = None, filter_runs: int = 1, lag_start_s: float | None = None) -> Calibration:
     """The Calibration of the filter's final state, with the same fields as the joint least squares'; its std
     counts the room's field disturbance (`magyro.ekf.room`), the filter's own beside it as `std_white`, and both
     the uncertainty of the lag when the likelihood estimated it (`magyro.ekf.lag`)."""
@@ -288,7 +288,8 @@ def assemble(filt: StreamingCalibrator, prep: Prepared, init: Initial, filter_s:
             "state_dimension": int(filt.n), "consider_magnetometer": bool(filt.consider),
             "magnetometer_newton_iterations": int(ref.iterations),
             "magnetometer_bias_corrected": bool(ref.bias_corrected),
-            "filter_runs": int(filter_runs)}),
+            "filter_runs": int(filter_runs),
+            "lag_start_s": float(tau if lag_start_s is None else lag_start_s)}),
         noise=NoiseReport(prep.gyro_density, sigma_mag, prep.sigma_mag if sigma_mag != prep.sigma_mag else None,
                           prep.noise_source,
                           room if ref.covariance is not None and room.correlation_time_s > 0 else None,
