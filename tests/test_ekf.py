@@ -318,6 +318,7 @@ def test_search_lag_takes_the_vertex_and_curvature_of_the_likelihood():
     near = search_lag(run_at, lag_s + 0.7e-3, run_at(lag_s + 0.7e-3))         # within the first three: no walk
     assert near.runs == 2 and near.lag_s == pytest.approx(lag_s, abs=0.02 * std_s)
     assert search_lag(lambda x: (-x, None), 0.0, (0.0, None)) is None               # falls on to +0.1 s
+    assert search_lag(lambda x: (np.inf if x > 0 else 0.0, None), 0.0, (0.0, None)) is None   # no likelihood
     assert all(abs(x) <= MAX_LAG_S for x in tried)
 
 

@@ -296,7 +296,8 @@ class ErrorStateEKF:
         nis = A * v1 * v1 + E * v2 * v2 + I * v3 * v3 + 2.0 * (Bs * v1 * v2 + Cs * v1 * v3 + F * v2 * v3)
         self.nis_sum += nis
         if self.likelihood_from_s <= self.t <= self.likelihood_to_s:
-            self.nll_sum += 0.5 * (nis + math.log(det_S))
+            # an S that is not positive definite (a filter whose covariance broke down) has no likelihood
+            self.nll_sum += 0.5 * (nis + math.log(det_S)) if det_S > 0.0 else math.inf
         dx = (Wa @ nu).tolist()
         if self.innovations is not None:
             self.innovations.append((nu, S))

@@ -66,8 +66,8 @@ def parabola_vertex(x: tuple[float, float, float], f: tuple[float, float, float]
     return (0.5 * (x[0] + x[1]) - d1 / curvature if curvature else math.nan), curvature
 
 
-class _Enough(Exception):
-    """The search has made MAX_LAG_RUNS runs."""
+class _NoLag(Exception):
+    """The search has made MAX_LAG_RUNS runs, or a run has no likelihood."""
 
 
 def search_lag(run_at: Callable[[float], tuple[float, Any]], lag0_s: float, first: tuple[float, Any],
@@ -82,14 +82,17 @@ def search_lag(run_at: Callable[[float], tuple[float, Any]], lag0_s: float, firs
     of the parabola through the lowest run and its two neighbours (far from its minimum -log L is no
     parabola: through runs 4 and 8 ms apart its curvature was 2.5 times too small, its vertex still within
     0.1 ms). None when that takes more than MAX_LAG_RUNS runs or leaves +/- MAX_LAG_S (the likelihood does not
-    bracket a lag)."""
+    bracket a lag), or when a run has no finite -log L (its S lost positive definiteness: seen on a split-check
+    half of BROAD 21)."""
     runs = {lag0_s: first}
 
     def at(lag_s: float) -> float:
         if lag_s not in runs:
             if len(runs) > MAX_LAG_RUNS:
-                raise _Enough
+                raise _NoLag
             runs[lag_s] = run_at(lag_s)
+        if not math.isfinite(runs[lag_s][0]):
+            raise _NoLag
         return runs[lag_s][0]
 
     centre = lag0_s
@@ -112,7 +115,7 @@ def search_lag(run_at: Callable[[float], tuple[float, Any]], lag0_s: float, firs
                     break
             bracket = tuple(sorted(walked[-3:]))
             centre = parabola_vertex(bracket, tuple(at(v) for v in bracket))[0]
-    except _Enough:
+    except _NoLag:
         return None
     return LagEstimate(float(vertex), float(curvature ** -0.5), (x[0], runs[x[0]][1]), (x[2], runs[x[2]][1]),
                        len(runs) - 1)

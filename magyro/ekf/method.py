@@ -228,9 +228,10 @@ def magnetometer_step(s: Session, prep: Prepared, bias_correction: bool):
     return ref
 
 
-LAG_NOT_BRACKETED = ("the filter's likelihood did not bracket the magnetometer's lag (within +/-0.1 s and "
-                     f"{MAX_LAG_RUNS} runs), so the lag of the linear fit (eq. 13) is used and the std does not count "
-                     "its uncertainty; solve with the least squares (--method nls), which estimates the lag with the rest")
+LAG_NOT_BRACKETED = ("the filter's likelihood gave no magnetometer lag (it did not bracket one within +/-0.1 s and "
+                     f"{MAX_LAG_RUNS} runs, or the filter's innovation covariance lost positive definiteness), so the "
+                     "lag of the linear fit (eq. 13) is used and the std does not count its uncertainty; solve with the "
+                     "least squares (--method nls), which estimates the lag with the rest")
 
 
 def lag_is_searched(prep: Prepared, options: Options) -> bool:
