@@ -1,9 +1,10 @@
 """The magnetometer's lag behind the gyro from the filter's own likelihood, and what its uncertainty adds to the std.
 
 Eq. (13)'s lag search (`magyro.front.initial.with_time_offset`: a golden section on the linear fit's residual)
-is a good start but a poor estimate: on paper-table1 its lag scatters by 0.70 ms where the Cramer-Rao bound is
+is a good start but a poor estimate: on paper-table1 its lag scattered by 0.70 ms where the Cramer-Rao bound is
 0.144 ms, and bias x moves by -11.8e-3 deg/s per ms of lag, so the filter run at that lag had a bias x std of
-1.44 x CRLB (0.82 with the lag known), and a reported std that knew nothing of the lag.
+1.44 x CRLB (0.82 with the lag known), and a reported std that knew nothing of the lag (the Table I record
+docs/numbers/montecarlo-paper-table1.json at commit f243c5c; the record now holds the lag of this module's).
 
 The filter's innovations nu_k, with covariance S_k, are the readings' likelihood at a given lag, the states
 integrated out by the filter itself:
@@ -95,14 +96,19 @@ def search_lag(run_at: Callable[[float], tuple[float, Any]], lag0_s: float, firs
             raise _NoLag
         return runs[lag_s][0]
 
-    centre = lag0_s
+    def inside(lag_s: float) -> float:
+        """The centre of three runs, kept so that all three lie within +/- MAX_LAG_S."""
+        return float(np.clip(lag_s, -MAX_LAG_S + step_s, MAX_LAG_S - step_s))
+
+    centre = inside(lag0_s)
     try:
-        while True:
+        for _ in range(MAX_LAG_RUNS):
             x = (centre - step_s, centre, centre + step_s)
             f = tuple(at(v) for v in x)
             vertex, curvature = parabola_vertex(x, f)
             if curvature > 0.0 and x[0] <= vertex <= x[2]:
-                break
+                return LagEstimate(float(vertex), float(curvature ** -0.5), (x[0], runs[x[0]][1]),
+                                   (x[2], runs[x[2]][1]), len(runs) - 1)
             side = -1.0 if f[0] < f[2] else 1.0
             walked, step = [centre, centre + side * step_s], step_s
             while True:
@@ -114,8 +120,7 @@ def search_lag(run_at: Callable[[float], tuple[float, Any]], lag0_s: float, firs
                 if at(lag) > at(walked[-2]):
                     break
             bracket = tuple(sorted(walked[-3:]))
-            centre = parabola_vertex(bracket, tuple(at(v) for v in bracket))[0]
+            centre = inside(parabola_vertex(bracket, tuple(at(v) for v in bracket))[0])
     except _NoLag:
-        return None
-    return LagEstimate(float(vertex), float(curvature ** -0.5), (x[0], runs[x[0]][1]), (x[2], runs[x[2]][1]),
-                       len(runs) - 1)
+        pass
+    return None
