@@ -105,7 +105,7 @@ def main() -> None:
     if args.out:
         root = Path(__file__).resolve().parents[1]
         done = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-        record = {"command": f"python benchmarks/bench_ekf.py --repeat {args.repeat} --out FILE",
+        record = {"command": f"python benchmarks/bench_ekf.py --repeat {args.repeat} --out {args.out}",
                   "date": datetime.date.today().isoformat(), "commit": done.stdout.strip() or "unknown",
                   "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}",
                   "other_load": load, "repeat": args.repeat, "rows": rows}

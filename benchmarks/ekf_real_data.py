@@ -117,7 +117,7 @@ def main() -> None:
     if args.out:
         root = Path(__file__).resolve().parents[1]
         done = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-        record = {"command": "python benchmarks/ekf_real_data.py --wild DIR --out FILE",
+        record = {"command": f"python benchmarks/ekf_real_data.py --wild DIR --out {args.out}",
                   "date": datetime.date.today().isoformat(), "commit": done.stdout.strip() or "unknown", "rows": rows}
         args.out.write_text(json.dumps(record, indent=1, default=float) + "\n")
 

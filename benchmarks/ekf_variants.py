@@ -73,7 +73,7 @@ def main() -> None:
     from machine_load import measured_at, write_record
 
     record = {**measured_at(f"python benchmarks/ekf_variants.py --seeds {args.seeds} --step1-seeds {args.step1_seeds} "
-                            "--out FILE"), "step1": {}, "variants": {}}
+                            f"--out {args.out}"), "step1": {}, "variants": {}}
     for name in ("paper-table1", "phone-module"):
         record["step1"][name] = {str(s): step1(name, s) for s in seeds(args.step1_seeds)}
         rms = record["step1"][name].values()

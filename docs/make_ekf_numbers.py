@@ -207,7 +207,9 @@ LAG = "ekf-lag-shipped"   # benchmarks/ekf_lag_shipped.py --out
 
 
 def lag_shipped_block(record: dict) -> str:
-    return (f"{record['ekf_lag_ms']:.1f} ms on trial 07 (the shipped data/{record['trial']}; `{record['command']}`, "
+    return (f"On trial 07 (the shipped data/{record['trial']}) eq. (13) starts the filter at "
+            f"{record['eq13_lag_ms']:.1f} ms and its likelihood puts the lag at {record['ekf_lag_ms']:.2f} +/- "
+            f"{record['ekf_lag_std_ms']:.2f} ms in {record['filter_runs']} filter runs (`{record['command']}`, "
             f"{record['date']})")
 
 

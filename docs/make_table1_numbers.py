@@ -162,18 +162,26 @@ def ekf_block(record: dict) -> str:
     res = result(record)
     nls, ekf = res["nls"], res["ekf"]
     rows = []
-    for r in [*gyro(nls.rows), *(nls.row(n) for n in EKF_ROWS)]:
+    lag = [n for n in ("time_offset_s",) if any(r.name == n for r in ekf.rows) and any(r.name == n for r in nls.rows)]
+    for r in [*gyro(nls.rows), *(nls.row(n) for n in (*EKF_ROWS, *lag))]:
         e = ekf.row(r.name)
         rows.append([label(r.name), fmt(r.crlb), fmt(r.std), fixed(r.std_over_crlb, 2), fmt(e.std),
-                     fixed(e.std_over_crlb, 2), fixed(e.mean_error_over_std, 2, sign=True)])
+                     fixed(e.std_over_crlb, 2), fixed(e.mean_error_over_std, 2, sign=True),
+                     fixed(e.reported_over_actual, 2)])
     above = [(r.name, r.std_over_crlb) for r in gyro(ekf.rows) if r.std_over_crlb > 1.10]
     mag = [ekf.row(n).std_over_crlb for n in EKF_ROWS]
+    honest = [r.reported_over_actual for r in gyro(ekf.rows) if math.isfinite(r.reported_over_actual)]
     text = (f"All {ekf.succeeded} EKF runs of {res.runs} succeeded. The EKF leaves "
             + (", ".join(f"`{n}` ({v:.2f})" for n, v in above) or "no gyro parameter")
             + f" above 1.10 x CRLB; the magnetometer's R and h, fitted in step 1 without the gyro, are "
-            f"{doc_blocks.span(mag, 1)} times the CRLB.")
+            f"{doc_blocks.span(mag, 1)} times the CRLB. Its mean reported std over the std actually observed "
+            f"(`ekf rep/act`) is {min(honest):.2f}-{max(honest):.2f} on the gyro parameters.")
+    if lag:
+        t = ekf.row("time_offset_s")
+        text += (f" The lag it estimates from its own likelihood (`time_offset_s`, true 0) scatters by "
+                 f"{1e3 * t.std:.3g} ms, {t.std_over_crlb:.2f} x CRLB, and its std counts in every other one.")
     return text + "\n\n" + table(["parameter", "CRLB", "nls std", "nls std/CRLB", "ekf std", "ekf std/CRLB",
-                                  "ekf err/std"], rows, left=(0,))
+                                  "ekf err/std", "ekf rep/act"], rows, left=(0,))
 
 
 def targets_block(record: dict) -> str:

@@ -3,6 +3,7 @@ its history, the streaming API. Targets from Wu & Pei Table I (3 sigma over 50 r
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 from pathlib import Path
 
@@ -34,6 +35,13 @@ def paper1():
     session, truth = simulate(problem, 1)
     cal, history = ekf.EKF().calibrate_with_history(session)
     return problem, session, truth, cal, history
+
+
+@pytest.fixture(scope="module")
+def paper1_lag_known(paper1):
+    """paper1's session with the lag fixed at its truth (0): one filter run, whose covariance is the std."""
+    session = paper1[1]
+    return (session, *ekf.EKF().calibrate_with_history(session, Options(estimate_time_offset=False)))
 
 
 def errors(cal, truth):
@@ -187,8 +195,10 @@ def test_calibrate_is_the_calibration_of_calibrate_with_history(paper1):
 # --------------------------------------------------------------------------- history
 
 
-def test_history_columns_and_final_row_equals_the_calibration(paper1, tmp_path):
-    _, _, _, cal, history = paper1
+def test_history_columns_and_final_row_equals_the_calibration(paper1_lag_known, tmp_path):
+    """The lag known: the std is the filter's final covariance, the history's last row (with the lag estimated
+    the std also counts the lag's uncertainty, which the filter's covariance does not: test_lag_...)."""
+    _, cal, history = paper1_lag_known
     df = history.to_frame()
     assert list(df.columns) == HISTORY_COLUMNS
     for name in ("t_s", "K11", "K23", "K33", "bias_x_deg_s", "bias_z_deg_s", "m_i_y", "K11_std",
@@ -232,9 +242,10 @@ def test_plot_history_writes_a_figure(paper1, tmp_path):
 # --------------------------------------------------------------------------- streaming
 
 
-def test_streaming_one_sample_at_a_time_equals_the_batch(paper1):
-    """Samples arriving one by one, the magnetometer up to 40 ms late, give the batch's final estimate."""
-    _, session, _, cal, _ = paper1
+def test_streaming_one_sample_at_a_time_equals_the_batch(paper1_lag_known):
+    """Samples arriving one by one, the magnetometer up to 40 ms late, give the batch's final estimate (the batch's
+    lag fixed at 0, as the stream takes it)."""
+    session, cal, _ = paper1_lag_known
     prep = prepare(session, Options())
     s = prep.session
     ref = ekf.refine_magnetometer(s.mag, prep.fit.R, prep.fit.h, prep.sigma_mag)
@@ -281,6 +292,61 @@ def test_streaming_rejects_time_going_backwards():
     f.add_mag(1.2, [1, 0, 0])
     with pytest.raises(InputError):
         f.add_mag(1.1, [1, 0, 0])
+
+
+# --------------------------------------------------------------------------- the magnetometer's lag
+
+
+def test_search_lag_takes_the_vertex_and_curvature_of_the_likelihood():
+    """On a known -log L: the vertex and 1/sqrt(curvature), walking there from a start 5 ms off, straight from
+    three runs around a start 0.7 ms off; None when the likelihood has no minimum within +/-0.1 s."""
+    from magyro.ekf.lag import MAX_LAG_S, search_lag
+
+    lag_s, std_s = 5.3e-3, 0.2e-3
+    tried = []
+
+    def run_at(x):
+        tried.append(x)
+        return 0.5 * ((x - lag_s) / std_s) ** 2 + 30.0 * ((x - lag_s) / 1e-2) ** 3, x   # a little skewed
+
+    found = search_lag(run_at, 0.0, run_at(0.0))
+    assert found.lag_s == pytest.approx(lag_s, abs=0.02 * std_s)
+    assert found.std_s == pytest.approx(std_s, rel=0.02)
+    assert found.below[0] < found.lag_s < found.above[0] and found.above[0] - found.below[0] == pytest.approx(2e-3)
+    assert found.sensitivity(lambda x, run: np.array([2.0 * run, x])) == pytest.approx([2.0, 1.0])
+    assert found.runs == len(tried) - 1 <= 12
+    near = search_lag(run_at, lag_s + 0.7e-3, run_at(lag_s + 0.7e-3))         # within the first three: no walk
+    assert near.runs == 2 and near.lag_s == pytest.approx(lag_s, abs=0.02 * std_s)
+    assert search_lag(lambda x: (-x, None), 0.0, (0.0, None)) is None               # falls on to +0.1 s
+    assert search_lag(lambda x: (np.inf if x > 0 else 0.0, None), 0.0, (0.0, None)) is None   # no likelihood
+    assert all(abs(x) <= MAX_LAG_S for x in tried)
+
+
+def test_lag_from_the_likelihood_lands_on_a_lagging_magnetometer_and_counts_in_the_std():
+    """paper-table1 with the magnetometer 7.3 ms late: the filter's likelihood puts the lag within 4 of its std
+    of the truth, that std near the Cramer-Rao bound (0.144 ms at lag 0), and the std of every bias axis grows
+    over the filter's own (given the lag) by the lag's variance times the bias's sensitivity to the lag, which
+    the filter run at a fixed lag 1 ms either side shows."""
+    from magyro.studies.crlb import cramer_rao_std
+
+    problem = dataclasses.replace(load_problem("paper-table1"), mag_time_offset_s=7.3e-3)
+    session, truth = simulate(problem, 1)
+    cal, history = ekf.EKF().calibrate_with_history(session)
+    crlb_s = cramer_rao_std(problem, session).time_offset_s
+    assert cal.time_offset_estimated and cal.solver.details["filter_runs"] >= 4
+    assert abs(cal.time_offset_s - problem.mag_time_offset_s) < 4.0 * cal.std.time_offset_s
+    assert 0.7 * crlb_s < cal.std.time_offset_s < 1.5 * crlb_s, (cal.std.time_offset_s, crlb_s)
+    assert "magnetometer lag behind the gyro (ms" in cal.table()
+
+    given_lag = np.array([history.to_frame().iloc[-1][n + "_std"] for n in BIAS_NAMES])
+    assert np.all(cal.std.bias_deg_s > given_lag)
+    fixed = [ekf.EKF().calibrate(session, Options(estimate_time_offset=False, time_offset_s=cal.time_offset_s + d))
+             for d in (-1e-3, 1e-3)]
+    assert not fixed[0].time_offset_estimated and fixed[0].std.time_offset_s == 0.0
+    per_s = (fixed[1].bias_deg_s - fixed[0].bias_deg_s) / 2e-3
+    expected = np.sqrt(given_lag**2 + (cal.std.time_offset_s * per_s) ** 2)
+    np.testing.assert_allclose(cal.std.bias_deg_s, expected, rtol=2e-3)
+    assert cal.std.bias_deg_s[0] > 1.01 * given_lag[0]      # bias x: -12e-3 deg/s per ms of lag
 
 
 # --------------------------------------------------------------------------- step 1

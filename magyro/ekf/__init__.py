@@ -7,7 +7,8 @@ the estimates over time (the paper's Fig. 3/6/7). The maths is in docs/ekf.md.
     scalar.py        the per-sample helpers in scalar arithmetic
     filter.py        the error-state EKF: state, propagation, measurement, update
     streaming.py     StreamingCalibrator: the filter fed sample by sample; run_filter
-    uncertainty.py   the std of the reported parameters from the filter's covariance
+    lag.py           the magnetometer's lag from the filter's own likelihood (runs at a few lags, a parabola)
+    uncertainty.py   the std of the reported parameters from the filter's covariance, and the lag's share
     history.py       EkfHistory (Parquet) and plot_history
     method.py        EKF, the method object: the steps in order, the Calibration assembled
 """

@@ -125,6 +125,10 @@ class ErrorStateEKF:
         self.t0 = None
         self.mag_updates = 0
         self.nis_sum = 0.0
+        # -log of the readings' likelihood, (nu^T S^-1 nu + log det S) / 2 summed over the updates at filter times in
+        # [likelihood_from_s, likelihood_to_s] (magyro.ekf.lag compares it between lags over the same readings)
+        self.nll_sum = 0.0
+        self.likelihood_from_s, self.likelihood_to_s = -math.inf, math.inf
         self._steps = 0
         self.history_stride = history_stride
         self._rows: list[tuple] = []
@@ -284,12 +288,16 @@ class ErrorStateEKF:
         P = self.P
         PHt = P @ H.T                                      # (n, 3)
         S = H @ PHt + self.Rn
-        (A, Bs, Cs, E, F, I), Si = inv_sym33(S)
+        (A, Bs, Cs, E, F, I), Si, det_S = inv_sym33(S)
         Wa = PHt[:N_STATE] @ Si                            # gain of the estimated states (consider states get none)
         zz = z.tolist()
         v1, v2, v3 = zz[0] - z1, zz[1] - z2, zz[2] - z3
         nu = (v1, v2, v3)
-        self.nis_sum += A * v1 * v1 + E * v2 * v2 + I * v3 * v3 + 2.0 * (Bs * v1 * v2 + Cs * v1 * v3 + F * v2 * v3)
+        nis = A * v1 * v1 + E * v2 * v2 + I * v3 * v3 + 2.0 * (Bs * v1 * v2 + Cs * v1 * v3 + F * v2 * v3)
+        self.nis_sum += nis
+        if self.likelihood_from_s <= self.t <= self.likelihood_to_s:
+            # an S that is not positive definite (a filter whose covariance broke down) has no likelihood
+            self.nll_sum += 0.5 * (nis + math.log(det_S)) if det_S > 0.0 else math.inf
         dx = (Wa @ nu).tolist()
         if self.innovations is not None:
             self.innovations.append((nu, S))

@@ -8,14 +8,16 @@
        from the ellipsoid (`magyro.ekf.magnetometer`)
     3. the filter's prior: eq. (13) on the calibrated field (`magyro.ekf.prior`)
     4. step 2, the error-state EKF fed the whole session in time order, the magnetometer stamps shifted
-       by its lag (eq. 13's search) and its noise re-weighted from the innovations
-       (`magyro.ekf.streaming`, `magyro.ekf.filter`)
+       by its lag and its noise re-weighted from the innovations (`magyro.ekf.streaming`,
+       `magyro.ekf.filter`); the lag from eq. (13)'s search refined on the filter's own likelihood, the
+       filter run at a few lags around it (`magyro.ekf.lag`)
     5. the result: the same Calibration as the joint least squares
        (solver.method = "ekf"), std from the final covariance of
        [vec K, eps, R, h, m^i] through `result.reported_vector` (central
        differences, like the least squares' `magyro.nls.information.propagate`:
        `magyro.ekf.uncertainty`), and the estimates over time
-       (`magyro.ekf.history`, the paper's Fig. 3/6/7).
+       (`magyro.ekf.history`, the paper's Fig. 3/6/7); the std counts the lag's uncertainty
+       (`magyro.ekf.uncertainty.with_lag`).
 """
 from __future__ import annotations
 
@@ -27,10 +29,11 @@ from typing import ClassVar
 import numpy as np
 
 from magyro.ekf.history import HISTORY_ROWS, EkfHistory
+from magyro.ekf.lag import LAG_STEP_S, MAX_LAG_RUNS, LagEstimate, likelihood_span, search_lag
 from magyro.ekf.magnetometer import known_magnetometer, refine_magnetometer
 from magyro.ekf.prior import PRIOR_INFLATION, Initial, initial_estimate
 from magyro.ekf.streaming import StreamingCalibrator, run_filter
-from magyro.ekf.uncertainty import reported_covariance
+from magyro.ekf.uncertainty import reported_covariance, with_lag
 from magyro.ekf.filter import N_STATE
 from magyro.ekf.room import (DisturbanceSensitivity, disturbance_covariance, measured_disturbance,
                              step1_room_covariance)
@@ -46,7 +49,7 @@ from magyro.options import Options
 from magyro.result.calibration import Calibration
 from magyro.result.fit import FilterFit
 from magyro.result.parts import Excitation, FieldDisturbance, NoiseReport, SolverReport
-from magyro.result.reported import axis_mapping_warning, qr_split, std_from_covariance
+from magyro.result.reported import axis_mapping_warning, qr_split, reported_vector, std_from_covariance
 from magyro.session import Session
 
 
@@ -58,9 +61,10 @@ class EKF:
     shared front end (`magyro.front.prepare`: `Options.force`, the noise
     options and `trim_rests` apply; ObservabilityError when the motion does
     not excite every parameter). The magnetometer's lag is searched as the
-    least squares' start searches it (eq. 13) and shifts the magnetometer
-    stamps; `Options.estimate_time_offset=False` fixes it at
-    `Options.time_offset_s`. The magnetometer noise is re-weighted from the
+    least squares' start searches it (eq. 13), then refined on the filter's
+    own likelihood, whose curvature gives its std; it shifts the magnetometer
+    stamps and its uncertainty counts in every std (`magyro.ekf.lag`).
+    `Options.estimate_time_offset=False` fixes it at `Options.time_offset_s`. The magnetometer noise is re-weighted from the
     filter's innovations, and the std counts the room's field disturbance
     (`magyro.ekf.room`; `count_room=False`: the filter's own covariance).
 
@@ -101,42 +105,90 @@ class EKF:
             ref = known_magnetometer(*self.magnetometer)
         else:
             ref = magnetometer_step(s, prep, self.mag_bias_correction)
-        tau = magnetometer_lag(s, ref, prep, options)
-        if tau:
-            s = replace(s, t_mag_s=s.t_mag_s - tau)
+        lag0 = magnetometer_lag(s, ref, prep, options)
+        searched = lag_is_searched(prep, options)
         room = (measured_disturbance(s.t_mag_s, s.mag, ref) if self.magnetometer is None and self.count_room
                 else FieldDisturbance(0.0, 0.0))
         if room.std_fraction > 0.0:   # step 1's std counts the room too, and reaches the gyro through the consider states
             ref = replace(ref, covariance=ref.covariance + step1_room_covariance(s.t_mag_s, s.mag, ref, room))
-        init = initial_estimate(s, ref, self.prior_inflation, unexcited_directions(prep.analysis))
+        init = initial_estimate(lagged(s, lag0), ref, self.prior_inflation, unexcited_directions(prep.analysis))
         stride = max(1, int(math.ceil(len(s.t_mag_s) / max(self.history_rows - 2, 1))))
         cov_Rh = ref.covariance if (self.consider_magnetometer and self.magnetometer is None) else None
-        sigma_mag = prep.sigma_mag
-        t_filter = time.perf_counter()
-        for n_pass in range(1, MAX_NOISE_PASSES + 1):
+        span = likelihood_span(s.t_gyro_s)
+        filter_runs: list[float] = []
+
+        def run_at(lag_s: float, sigma_mag: float, final: bool, innovations: bool = False) -> StreamingCalibrator:
+            """The filter over the session with the magnetometer stamps shifted by lag_s; the final run records
+            the history and, when the room is counted, the sensitivities to it; the noise passes the innovations."""
             filt = StreamingCalibrator(ref.R, ref.h, init.K0, init.eps0, None, prep.gyro_density, sigma_mag,
-                                       P0=init.P0, cov_Rh=cov_Rh, history_stride=stride)
-            if room.std_fraction > 0.0:
+                                       P0=init.P0, cov_Rh=cov_Rh, history_stride=stride if final else None)
+            if final and room.std_fraction > 0.0:
                 filt.room = DisturbanceSensitivity(N_STATE)
-            filt.innovations = []
-            run_filter(s, filt)
+            filt.innovations = [] if innovations else None
+            filt.likelihood_from_s, filt.likelihood_to_s = span[0] - lag_s, span[1] - lag_s
+            run_filter(lagged(s, lag_s), filt)
+            filter_runs.append(lag_s)
             if not filt.started or filt.mag_updates == 0:
                 raise InputError("the EKF got no magnetometer sample inside the gyro's time span")
-            factor = noise_factor(filt, options) if n_pass < MAX_NOISE_PASSES else None
-            if factor is None:
-                break
-            sigma_mag *= factor if n_pass == 1 else math.sqrt(factor)   # damped: the filter moves with its noise
+            return filt
+
+        t_filter = time.perf_counter()
+        filt, sigma_mag, _ = reweighted(lambda sigma: run_at(lag0, sigma, final=not searched, innovations=True),
+                                        prep.sigma_mag, options)
+        lag, warnings = None, []
+        if searched:
+            lag, sigma_mag = likelihood_lag(run_at, lag0, filt, sigma_mag, options)
+            if lag is None:
+                warnings.append(LAG_NOT_BRACKETED)
+            filt = run_at(lag0 if lag is None else lag.lag_s, sigma_mag, final=True)
+        tau = lag0 if lag is None else lag.lag_s
         filter_s = time.perf_counter() - t_filter
         history = filt.history()
         omega = disturbance_covariance(filt.room, room) if filt.room is not None else None
         filt.room = filt.innovations = None   # the recorded entries are large; the covariance is all that is kept
-        cal = assemble(filt, prep, init, filter_s, time.perf_counter() - t_start, tau, room, omega, sigma_mag)
-        cal.warnings.extend(gate_warnings)
+        cal = assemble(filt, prep, init, filter_s, time.perf_counter() - t_start, tau, room, omega, sigma_mag, lag,
+                       len(filter_runs), lag0)
+        cal.warnings.extend(gate_warnings + warnings)
         return cal, history
 
 
 MAX_NOISE_PASSES = 4          # the filter runs again at most 3 times with the magnetometer noise re-weighted
 NOISE_RESCALE_TOLERANCE = 0.2   # ... when the innovations' effective scale is off by more than this (the NLS's)
+
+
+def likelihood_lag(run_at, lag0_s: float, first: StreamingCalibrator, sigma_mag: float,
+                   options: Options) -> tuple[LagEstimate | None, float]:
+    """(the lag from the filter's likelihood, the magnetometer noise std it was found with), from eq. (13)'s lag
+    lag0_s, where `first` ran (`magyro.ekf.lag.search_lag`). The noise was re-weighted at lag0_s; a lag far from
+    it had inflated the innovations there (paper-table1 at a lag of 7.3 ms that eq. 13 put at 0: a lag std of
+    0.22 ms instead of 0.14), so where the lag moved by more than LAG_STEP_S the noise is re-weighted at the new
+    lag, and the lag searched again from there if that moved the noise."""
+    def likelihood(sigma: float):
+        def at(lag_s: float) -> tuple[float, StreamingCalibrator]:
+            run = run_at(lag_s, sigma, final=False)
+            return run.nll_sum, run
+        return at
+
+    lag = search_lag(likelihood(sigma_mag), lag0_s, (first.nll_sum, first))
+    if lag is None or abs(lag.lag_s - lag0_s) <= LAG_STEP_S:
+        return lag, sigma_mag
+    filt, sigma_there, moved = reweighted(lambda sigma: run_at(lag.lag_s, sigma, final=False, innovations=True),
+                                          sigma_mag, options)
+    again = search_lag(likelihood(sigma_there), lag.lag_s, (filt.nll_sum, filt)) if moved else None
+    return (again, sigma_there) if again is not None else (lag, sigma_mag)
+
+
+def reweighted(run_at, sigma_mag: float, options: Options) -> tuple[StreamingCalibrator, float, bool]:
+    """(the last run, the magnetometer noise std it ran with, whether that moved from sigma_mag): the filter
+    `run_at(sigma)` run again while its innovations say the noise is off (`noise_factor`)."""
+    start = sigma_mag
+    for n_pass in range(1, MAX_NOISE_PASSES + 1):
+        filt = run_at(sigma_mag)
+        factor = noise_factor(filt, options) if n_pass < MAX_NOISE_PASSES else None
+        if factor is None:
+            break
+        sigma_mag *= factor if n_pass == 1 else math.sqrt(factor)   # damped: the filter moves with its noise
+    return filt, sigma_mag, sigma_mag != start
 
 
 def noise_factor(filt: StreamingCalibrator, options: Options) -> float | None:
@@ -176,28 +228,55 @@ def magnetometer_step(s: Session, prep: Prepared, bias_correction: bool):
     return ref
 
 
+LAG_NOT_BRACKETED = ("the filter's likelihood gave no magnetometer lag (it did not bracket one within +/-0.1 s and "
+                     f"{MAX_LAG_RUNS} runs, or the filter's innovation covariance lost positive definiteness), so the "
+                     "lag of the linear fit (eq. 13) is used and the std does not count its uncertainty; solve with the "
+                     "least squares (--method nls), which estimates the lag with the rest")
+
+
+def lag_is_searched(prep: Prepared, options: Options) -> bool:
+    """The lag is estimated unless fixed (--no-time-offset) or the motion does not excite every parameter."""
+    return bool(options.estimate_time_offset and prep.analysis.full_rank)
+
+
+def lagged(s: Session, lag_s: float) -> Session:
+    """The session with the magnetometer stamps moved to the instants its readings measured (stamp - lag)."""
+    return replace(s, t_mag_s=s.t_mag_s - lag_s) if lag_s else s
+
+
 def magnetometer_lag(s: Session, ref, prep: Prepared, options: Options) -> float:
-    """The magnetometer's lag behind the gyro, s: searched on eq. (13) as the least squares starts from
+    """The start of the magnetometer's lag behind the gyro, s: searched on eq. (13) as the least squares starts from
     (`magyro.front.initial.with_time_offset`; 10-33 ms on real devices, where 3-10 deg of attitude per update at
-    300 deg/s biased the filter by degrees per second), or `Options.time_offset_s` when fixed
-    (--no-time-offset) or when the motion does not excite every parameter."""
-    if not (options.estimate_time_offset and prep.analysis.full_rank):
+    300 deg/s biased the filter by degrees per second); the filter's likelihood then refines it
+    (`magyro.ekf.lag`). `Options.time_offset_s` when fixed (--no-time-offset) or when the motion does not
+    excite every parameter."""
+    if not lag_is_searched(prep, options):
         return float(options.time_offset_s or 0.0)
     field_m = ellipsoid.calibrated_field(ref.R, ref.h, s.mag)
     return float(with_time_offset(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, field_m).time_offset_s)
 
 
 def assemble(filt: StreamingCalibrator, prep: Prepared, init: Initial, filter_s: float, total_s: float,
-             tau: float, room: FieldDisturbance, omega: np.ndarray | None, sigma_mag: float) -> Calibration:
+             tau: float, room: FieldDisturbance, omega: np.ndarray | None, sigma_mag: float,
+             lag: LagEstimate | None = None, filter_runs: int = 1, lag_start_s: float | None = None) -> Calibration:
     """The Calibration of the filter's final state, with the same fields as the joint least squares'; its std
-    counts the room's field disturbance (`magyro.ekf.room`), the filter's own beside it as `std_white`."""
+    counts the room's field disturbance (`magyro.ekf.room`), the filter's own beside it as `std_white`, and both
+    the uncertainty of the lag when the likelihood estimated it (`magyro.ekf.lag`)."""
     K, eps, m = filt.K.copy(), filt.eps.copy(), filt.m.copy()
     C, Kg = proper_split(K)
     ref = init.refinement
+
+    def reported(cov_in: np.ndarray) -> np.ndarray:
+        cov = reported_covariance(K, eps, ref.R, ref.h, m, cov_in, C)
+        if lag is None:
+            return cov
+        S = np.linalg.inv(ref.R)
+        g = lag.sensitivity(lambda lag_s, run: reported_vector(run.K, run.eps, S, ref.h, run.m, C, lag_s))
+        return with_lag(cov, lag.std_s, g)
+
     cov_white = filt.input_covariance(ref.covariance)
-    std_white = std_from_covariance(reported_covariance(K, eps, ref.R, ref.h, m, cov_white, C))
-    std = std_white if omega is None else std_from_covariance(
-        reported_covariance(K, eps, ref.R, ref.h, m, cov_white + room_input_covariance(omega, filt.B), C))
+    std_white = std_from_covariance(reported(cov_white))
+    std = std_white if omega is None else std_from_covariance(reported(cov_white + room_input_covariance(omega, filt.B)))
     n_samples = filt.gyro_samples + filt.mag_updates
     return Calibration(
         K_g=Kg, bias_rad_s=C.T @ eps, K=K, eps_rad_s=eps, C_b_m=C, R=ref.R, h=ref.h,
@@ -206,17 +285,19 @@ def assemble(filt: StreamingCalibrator, prep: Prepared, init: Initial, filter_s:
         solver=SolverReport("ekf", "done", int(n_samples), float(filter_s), float(total_s), {
             "gyro_samples": int(filt.gyro_samples), "mag_updates": int(filt.mag_updates),
             "skipped_mag": int(filt.skipped_mag),
-            "samples_per_second": float(n_samples / filter_s) if filter_s > 0 else None,
+            "samples_per_second": float(n_samples * filter_runs / filter_s) if filter_s > 0 else None,
             "state_dimension": int(filt.n), "consider_magnetometer": bool(filt.consider),
             "magnetometer_newton_iterations": int(ref.iterations),
-            "magnetometer_bias_corrected": bool(ref.bias_corrected)}),
+            "magnetometer_bias_corrected": bool(ref.bias_corrected),
+            "filter_runs": int(filter_runs),
+            "lag_start_s": float(tau if lag_start_s is None else lag_start_s)}),
         noise=NoiseReport(prep.gyro_density, sigma_mag, prep.sigma_mag if sigma_mag != prep.sigma_mag else None,
                           prep.noise_source,
                           room if ref.covariance is not None and room.correlation_time_s > 0 else None,
                           None, *level_sources(prep, sigma_mag)),
         fit=FilterFit(float(ref.rms_norm_error), float(ref.rms_norm_error_initial),
                       float(filt.nis_sum / max(filt.mag_updates, 1)), tuple(np.sqrt(np.diag(init.P0)).tolist())),
-        time_offset_s=tau,
+        time_offset_s=tau, time_offset_estimated=lag is not None,
         rests=rest_check(prep.rests, Kg, C.T @ eps),
         warnings=[w for w in (axis_mapping_warning(C), guessed_gyro_level_warning(prep)) if w],
     )

@@ -40,12 +40,13 @@ def mul33(A, B) -> tuple:
 
 
 def inv_sym33(S: np.ndarray) -> tuple:
-    """Inverse of a symmetric positive definite 3x3 (cofactors): (its 6 distinct entries, the matrix)."""
+    """Inverse of a symmetric positive definite 3x3 (cofactors): (its 6 distinct entries, the matrix, det S)."""
     (a, b, c), (_, e, f), (_, _, i) = S.tolist()
     A, B, C = e * i - f * f, c * f - b * i, b * f - c * e
-    k = 1.0 / (a * A + b * B + c * C)
+    det = a * A + b * B + c * C
+    k = 1.0 / det
     A, B, C, E, F, I = A * k, B * k, C * k, (a * i - c * c) * k, (b * c - a * f) * k, (a * e - b * b) * k
-    return (A, B, C, E, F, I), np.array([[A, B, C], [B, E, F], [C, F, I]])
+    return (A, B, C, E, F, I), np.array([[A, B, C], [B, E, F], [C, F, I]]), det
 
 
 def carry_basis(B, m) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""From the filter's covariance to the one-sigma of the reported parameters (K_g, bias, misalignment, R, h, m^i)."""
+"""From the filter's covariance to the one-sigma of the reported parameters (K_g, bias, misalignment, R, h, m^i, the lag)."""
 from __future__ import annotations
 
 import numpy as np
@@ -30,3 +30,10 @@ def reported_covariance(K, eps, R, h, m_i, cov_in: np.ndarray, C_ref=None) -> np
         e[i] = step * max(1.0, abs(x0[i]))
         J[:, i] = (f(x0 + e) - f(x0 - e)) / (2 * e[i])
     return J @ cov_in @ J.T
+
+
+def with_lag(cov_out: np.ndarray, lag_std_s: float, sensitivity: np.ndarray) -> np.ndarray:
+    """The covariance of the reported vector given the lag, plus what the lag's own uncertainty adds (law of total
+    covariance): var(lag) g g^T, g = d(reported vector)/d(lag) per second (its time_offset_s entry is 1)."""
+    g = np.asarray(sensitivity, dtype=float)
+    return cov_out + lag_std_s**2 * np.outer(g, g)
