@@ -518,7 +518,7 @@ def test_degenerate_magnetometer_cloud_is_a_cause_not_a_crash(tmp_path):
                **{f"m{a}": f"Magnetometer {a.upper()} (uT)" for a in "xyz"}}
     session = wild_session("fusion", lambda p: convert_csv(
         [p / "sensor_data.csv"], tmp_path / "f.parquet", column_map_items=[f"{k}={v}" for k, v in columns.items()],
-        gyro_unit="deg/s", mag_unit="uT"))
+        gyro_unit="deg/s", mag_unit="uT", acc_unit="g"))   # the x-IMU logs its accelerometer in g
     with pytest.raises(MagyroError) as info:
         calibrate(session, Options(), ekf.EKF())
     assert info.value.exit_code in (2, 3), str(info.value)

@@ -34,7 +34,7 @@ from magyro.live.sources import LineParser, resolve_source
 from magyro.live.stream import session_lines, stream_session
 from magyro.observability.gate import noise_matrix
 from magyro.observability.matrix import information_integral
-from magyro.studies import simulate as sim
+from magyro.studies import motion, simulate as sim
 from magyro.studies.scenario import load_problem
 
 PHASES = ((10.0, 25.0, "x"), (25.0, 40.0, "y"), (40.0, 55.0, "z"))   # one axis at a time, after a 10 s rest
@@ -47,14 +47,14 @@ def staged_session(duration_s: float = 110.0, seed: int = 0):
     """The staged recording (module docstring), through `magyro.studies.simulate.simulate` with its motion replaced."""
     problem = dataclasses.replace(load_problem("three-axes"), duration_s=duration_s)
     rng = np.random.default_rng(2)
-    factors = [sim.Factor(np.eye(3)["xyz".index(axis)], np.array([math.pi / 2]), np.array([TURN_HZ]),
+    factors = [motion.Factor(np.eye(3)["xyz".index(axis)], np.array([math.pi / 2]), np.array([TURN_HZ]),
                           np.array([-2 * math.pi * TURN_HZ * start]), start, stop, 0.5)
                for start, stop, axis in PHASES]
     for axis in "xyz":
         freqs, phases, w = rng.uniform(0.05, 0.3, 4), rng.uniform(0, 2 * np.pi, 4), rng.uniform(0.5, 1.0, 4)
-        factors.append(sim.Factor(np.eye(3)["xyz".index(axis)], math.radians(120.0) * w / w.sum(), freqs, phases,
+        factors.append(motion.Factor(np.eye(3)["xyz".index(axis)], math.radians(120.0) * w / w.sum(), freqs, phases,
                                   PHASES[-1][1], duration_s, 0.5))
-    with mock.patch.object(sim, "motion_factors", lambda p: factors):
+    with mock.patch.object(motion, "motion_factors", lambda p: factors):   # where the truth's motion is drawn
         return sim.simulate(problem, seed)[0]
 
 
