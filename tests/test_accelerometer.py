@@ -61,11 +61,12 @@ def test_gravity_helps_the_gyro(broad02_acc_solved, broad02_solved):
 def test_json_round_trip(broad02_acc_solved, tmp_path):
     _, cal = broad02_acc_solved
     back = Calibration.from_json(cal.to_json())
-    for name in ("K_a", "bias_m_s2", "C_b_a", "std_K_a", "std_bias_m_s2", "std_misalignment_deg"):
+    for name in ("K_a", "bias_m_s2", "C_b_a", "std_K_a", "std_bias_m_s2", "std_misalignment_deg", "lever_arm_m",
+                 "std_lever_arm_m"):
         assert np.array_equal(getattr(back.accelerometer, name), getattr(cal.accelerometer, name)), name
     d = json.loads(cal.to_json())
     assert set(d["accelerometer"]) >= {"K_a", "bias_m_s2", "C_b_a", "g_m_s2"}
-    assert set(d["std"]["accelerometer"]) == {"K_a", "bias_m_s2", "misalignment_deg"}
+    assert set(d["std"]["accelerometer"]) == {"K_a", "bias_m_s2", "misalignment_deg", "lever_arm_m"}
 
 
 def test_accelerometer_columns_change_nothing_unless_asked(broad02_solved):

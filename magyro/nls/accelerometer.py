@@ -6,9 +6,12 @@ Model (docs/spec.md section 1): the accelerometer reads y_a with f^a = K_a y_a +
     f^m = A y_a + b,   A = C_a^m K_a,   b = C_a^m eps_a,   C_a^m = C_b^m C_b_a^T
 
 and the specific force is the hand's acceleration plus gravity's reaction: f^m = C_i^m (a^i + g u^i), u^i the up
-direction in frame i (2 dof), g the local gravity (given). Two residuals per interval (interval.py):
+direction in frame i (2 dof), g the local gravity (given). The residuals are the readings', y_a = M f^m + c with
+M = A^-1 and c = -M b (as the magnetometer's are y_m - h - R^-1 C m): the hand's acceleration is in the readings,
+and a fit of f = A y + b that took the readings as exact regressors shrank every scale factor by the hand's share
+of their variance (BROAD 07, 09, 21, 30: K_a 0.12-0.75 and C_b_a up to 76 deg). Per interval (interval.py):
 
-  * the interval's mean of A y_a + b - g C_i^m(t_j) u^i over its segment starts t_j, weighted by
+  * the interval's mean of y_a - M g C_i^m(t_j) u^i - c over its segment starts t_j, weighted by
     1 / sqrt(sigma_w^2 / n + s_h^2(t)): sigma_w the accelerometer's white noise per sample, s_h^2(t) the hand's
     acceleration variance there (the residuals' mean square over a second, less the white part: zero at rest,
     tenths of m/s^2 while a hand turns the device). The hand's acceleration lasts longer than an interval: the
@@ -53,9 +56,12 @@ class AccelerometerStart:
     sigma_white_m_s2: float    # the accelerometer's white noise per sample (RMS over the axes)
     interval_s: np.ndarray     # (n_int,)
     weight: np.ndarray         # (n_int,) the interval means' weights at the start
+    grid: Grid | None = None   # the grid it sits on (its gyro, for the lever arm's acceleration)
 
     def globals(self) -> dict:
-        return {"A0": self.A0, "b0": self.b0, "u0": self.u0_i, "Bu": so3.tangent_basis(self.u0_i),
+        """The linearisation of the readout y = M f + c (interval.accelerometer_readout): M0 = A0^-1, c0 = -M0 b0."""
+        M0 = np.linalg.inv(self.A0)
+        return {"M0": M0, "c0": -M0 @ self.b0, "u0": self.u0_i, "Bu": so3.tangent_basis(self.u0_i),
                 "g_acc": np.array([self.g_m_s2])}
 
     def columns(self, weight=None) -> dict:
@@ -131,7 +137,7 @@ def accelerometer_start(full_session, session, grid: Grid, C_m_i_nodes: np.ndarr
     u0 = u0 / np.linalg.norm(u0)
     sigma = white_noise_m_s2(full_session, rest_segments)
     start = AccelerometerStart(y, share, count, rest0, rest1, n0, n1, A0, np.zeros(3), u0, float(g_m_s2), sigma,
-                               grid.interval_s, np.zeros(len(count)))
+                               grid.interval_s, np.zeros(len(count)), grid)
     start.weight = hand_weights(start_residuals(start, C_m_i_nodes), start)
     return start
 
@@ -170,12 +176,29 @@ def white_variance(start: AccelerometerStart) -> np.ndarray:
     return start.sigma_white_m_s2 ** 2 / np.maximum(start.count, 1)
 
 
-def specific_force_excess(start: AccelerometerStart, A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(n_int,) |mean of A y + b| - g over each interval (0 where it has no sample): the hand's acceleration along
-    gravity, which no attitude can explain away (a tilt turns the specific force, it does not change its size)."""
+def specific_force_excess(start: AccelerometerStart, A: np.ndarray, b: np.ndarray, K: np.ndarray | None = None,
+                          eps: np.ndarray | None = None, lever_m: np.ndarray | None = None) -> np.ndarray:
+    """(n_int,) |mean of A y + b - the lever arm's acceleration| - g over each interval (0 where it has no sample):
+    the hand's acceleration along gravity, which no attitude can explain away (a tilt turns the specific force, it
+    does not change its size). The lever arm's (turning about a point `lever_m` away, the gyro calibrated by K,
+    eps) is the model's, not the hand's."""
     f = np.einsum("ij,ksj->ksi", A, start.y) + b
+    if lever_m is not None:
+        f = f - lever_acceleration(start.grid, K, eps, lever_m)
     mean_f = np.einsum("ks,ksi->ki", start.share, f)
     return np.where(start.count > 0, np.linalg.norm(mean_f, axis=1) - start.g_m_s2, 0.0)
+
+
+def lever_acceleration(grid: Grid, K: np.ndarray, eps: np.ndarray, lever_m: np.ndarray) -> np.ndarray:
+    """(n_int, stride, 3) alpha x r + w x (w x r) at every segment start, as the kernel has it: w the calibrated rate
+    there, alpha the segment's mean angular acceleration."""
+    wa = grid.gyro_a @ K.T + eps                                   # (n_int, stride, L, 3)
+    wb = grid.gyro_b @ K.T + eps
+    seg_s = grid.dt_s.sum(axis=2)
+    alpha = (wb - wa).sum(axis=2) / np.where(seg_s > 0, seg_s, 1.0)[..., None]
+    w = wa[:, :, 0]
+    r = np.broadcast_to(lever_m, w.shape)
+    return np.cross(alpha, r) + np.cross(w, np.cross(w, r))
 
 
 def local_mean_square(x: np.ndarray, used: np.ndarray, window: int) -> np.ndarray:
@@ -246,7 +269,7 @@ def accelerometer_result(problem, theta: np.ndarray, g: np.ndarray, cov_theta: n
     from magyro.result.accelerometer import AccelerometerCalibration
 
     def parts(th):
-        A, b, u, g_acc = (np.array(v) for v in problem.accelerometer_function(th, g))
+        A, b, u, g_acc, _ = (np.array(v) for v in problem.accelerometer_function(th, g))
         C_b_m = qr_split(np.array(problem.physical_function(th, g)[2]))[0]
         return A, b.ravel(), C_b_m, u.ravel(), float(g_acc.item())
 
@@ -260,4 +283,6 @@ def accelerometer_result(problem, theta: np.ndarray, g: np.ndarray, cov_theta: n
         e[i] = step
         J[:, i] = (f(theta + e) - f(theta - e)) / (2 * step)
     std = np.sqrt(np.maximum(np.diag(J @ cov_theta @ J.T), 0.0))
-    return AccelerometerCalibration.from_reported(K_a, eps_a, C_b_a, g_acc, u, std)
+    lever = slice(len(theta) - 3, len(theta))    # the lever arm, m in frame m: the last three corrections
+    return AccelerometerCalibration.from_reported(K_a, eps_a, C_b_a, g_acc, u, std, theta[lever] * 1.0,
+                                                  np.sqrt(np.maximum(np.diag(cov_theta)[lever], 0.0)))

@@ -8,7 +8,8 @@ kept and its covariance is the sandwich
     Cov = I^-1 + I^-1 Omega I^-1,   Omega = sum_{j, k} U_j rho(j - k) U_k^T - sum_j V_j V_j^T,
 
 U_j = Jt_j^T L_j, Jt_j the profiled Jacobian of interval j's accelerometer residual (its start node moved along
-with the calibration), L_j = w_j s_h(t_j) C_i^m(t_j) how a unit of the hand's acceleration in frame i enters it, and
+with the calibration), L_j = w_j s_h(t_j) M C_i^m(t_j) how a unit of the hand's acceleration in frame i enters it
+(the readings are y = M f + c), and
 rho the hand's measured autocorrelation over intervals (`accelerometer.tapered_autocorrelation`), isotropic in
 frame i, of the local std s_h(t) measured (nls/accelerometer.py `hand_motion`); V_j is U_j with the std the
 weights hold, which I counts as independent already. At rest s_h is zero. The
@@ -66,6 +67,7 @@ def hand_sensitivities(problem: JointProblem, x, p, reduced: Reduced, hand_std_m
     states = np.vstack([np.zeros(B), x[G:].reshape(-1, B)])                  # nodes 0..n_int
     data = p[problem.n_glob_p :].reshape(problem.n_int, problem.n_data)
     weight = data[:, data_offset(problem, "w_acc")]
+    readout = np.linalg.inv(np.array(problem.accelerometer_function(theta, g)[0]))   # M: the hand reads as M C_i^m a
     maps = {}
     for a in range(0, problem.n_int, CHUNK):
         n = slice(a, min(a + CHUNK, problem.n_int))
@@ -76,7 +78,7 @@ def hand_sensitivities(problem: JointProblem, x, p, reduced: Reduced, hand_std_m
         J_theta = np.array(J_theta).reshape(3, m, G).transpose(1, 0, 2)       # (m, 3, G): blocks side by side
         J_node = np.array(J_node).reshape(3, m, B).transpose(1, 0, 2)         # (m, 3, B)
         J_profiled = J_theta - J_node @ W[n]
-        L = (weight[n] * hand_std_m_s2[n])[:, None, None] * attitude_i_to_m(data[n], states[n])   # (m, 3, 3)
+        L = (weight[n] * hand_std_m_s2[n])[:, None, None] * (readout @ attitude_i_to_m(data[n], states[n]))  # (m, 3, 3)
         yield np.swapaxes(J_profiled, -1, -2) @ L
 
 

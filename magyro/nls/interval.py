@@ -8,8 +8,9 @@ An interval runs from attitude node k to node k+1 over `stride` segments, each o
                   threshold a parameter (NO_HUBER: none); w_seg 0 where a segment starts at no sample
     gyro          Winv vee(E - E^T)/2 / sqrt(T_n)     E: mismatch of the integrated gyro against the node attitudes
     walk          the moving hard iron's step, when it walks
-    accelerometer (with `acc`) w_acc sum_j c_j (A y_a(t_j) + b - g C_i^m(t_j) u^i): the interval's mean specific force
-                  against gravity (up u^i in frame i, 2 dof; g given), then the rests' mean at a node
+    accelerometer (with `acc`) w_acc sum_j c_j (y_a(t_j) - M g C_i^m(t_j) u^i - c): the interval's mean reading against
+                  the one gravity makes (up u^i in frame i, 2 dof; g given; y_a = M f^m + c, the model read
+                  backwards, f^m = A y_a + b with A = M^-1, b = -M^-1 c), then the rests' mean at a node
                   (nls/accelerometer.py)
 
 Each sub-step rotates by (w_a + w_b)/2 dt + dt^2/12 (w_a x w_b), w = K y_g + eps. `interval_kernels` gives the
@@ -30,8 +31,8 @@ TIME_OFFSET_SCALE_S = 0.01
 UPPER_INDEX = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
 GLOBAL_LAYOUT = [("S0", 9), ("h0", 3), ("K0", 9), ("eps0", 3), ("m0", 3), ("B", 6), ("field_scale", 1), ("Winv", 9), ("w_mag", 1), ("tau0", 1),
                  ("huber", 1)]
-ACC_GLOBAL_LAYOUT = [("A0", 9), ("b0", 3), ("u0", 3), ("Bu", 6), ("g_acc", 1)]   # appended with the accelerometer
-N_ACC_THETA = 14       # dA (9, column-major), db (3, m/s^2), du (2): after the time offset
+ACC_GLOBAL_LAYOUT = [("M0", 9), ("c0", 3), ("u0", 3), ("Bu", 6), ("g_acc", 1)]   # appended with the accelerometer
+N_ACC_THETA = 17       # dM (9, column-major), dc (3, m/s^2), du (2), the lever arm r (3, m): after the time offset
 NO_HUBER = 1e30   # the Huber threshold (noise sigmas) of the plain least squares: no residual reaches it
 
 
@@ -86,9 +87,9 @@ def unpack_globals(theta, g):
 
 
 def has_time_offset(n_theta: int) -> bool:
-    """Whether a theta of this size holds the time offset: N_GLOBAL, + 1 with it, + N_ACC_THETA (even) with the
+    """Whether a theta of this size holds the time offset: N_GLOBAL, + 1 with it, + N_ACC_THETA with the
     accelerometer."""
-    return (n_theta - N_GLOBAL) % 2 == 1
+    return n_theta - N_GLOBAL - (N_ACC_THETA if has_accelerometer(n_theta) else 0) == 1
 
 
 def has_accelerometer(n_theta: int) -> bool:
@@ -107,7 +108,18 @@ def data_layout(stride: int, L: int, walk: bool = False, acc: bool = False) -> l
 
 
 def unpack_accelerometer(theta, g):
-    """(A, b, u^i, g_m_s2) of the accelerometer: f^m = A y_a + b; the unit up direction in frame i; gravity."""
+    """(A, b, u^i, g_m_s2, r) of the accelerometer: f^m = A y_a + b; the unit up direction in frame i; gravity; the
+    lever arm from the point the device turns about (m, frame m)."""
+    M, c, u_i, g_acc, lever_m = accelerometer_readout(theta, g)
+    A = ca.inv(M)
+    return A, -ca.mtimes(A, c), u_i, g_acc, lever_m
+
+
+def accelerometer_readout(theta, g):
+    """(M, c, u^i, g_m_s2, r): the reading a specific force f^m gives, y_a = M f^m + c, and the lever arm r. The
+    residuals are the readings' (as the magnetometer's are): the hand's acceleration is in the readings, and a fit of
+    f = A y + b with the readings as exact regressors shrinks every scale factor by the hand's share of their
+    variance."""
     n = theta.shape[0]
     d = theta[n - N_ACC_THETA:]
     o = sum(k for _, k in GLOBAL_LAYOUT)
@@ -115,10 +127,10 @@ def unpack_accelerometer(theta, g):
     for name, k in ACC_GLOBAL_LAYOUT:
         parts[name] = g[o : o + k]
         o += k
-    A = ca.reshape(parts["A0"], 3, 3) + ca.reshape(d[:9], 3, 3)
-    b = parts["b0"] + d[9:12]
+    M = ca.reshape(parts["M0"], 3, 3) + ca.reshape(d[:9], 3, 3)
+    c = parts["c0"] + d[9:12]
     u_raw = parts["u0"] + ca.mtimes(ca.reshape(parts["Bu"], 3, 2), d[12:14])
-    return A, b, u_raw / ca.norm_2(u_raw), parts["g_acc"]
+    return M, c, u_raw / ca.norm_2(u_raw), parts["g_acc"], d[14:17]
 
 
 def global_part(g, name: str):
@@ -163,26 +175,33 @@ def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool =
     q_k = quat_exp(phi_k)
     n_k = rotate_inverse(q_k, ca.mtimes(Cbar.T, m_i))  # C_i^m(tau_k) m^i
     if acc:
-        A, b, u_i, g_acc = unpack_accelerometer(theta, g)
+        M, c, u_i, g_acc, lever_m = accelerometer_readout(theta, g)
         up_k = rotate_inverse(q_k, ca.mtimes(Cbar.T, u_i))   # C_i^m(t_k) u^i
         acc_mean = ca.SX.zeros(3)
     Q = ca.DM([1, 0, 0, 0])
     res = []
     for i in range(stride):
-        if acc:   # the specific force against gravity at the segment start, weighted into the interval's mean
-            f_m = ca.mtimes(A, parts["yacc"][3 * i : 3 * i + 3]) + b
-            acc_mean += parts["cacc"][i] * (f_m - g_acc * rotate_inverse(Q, up_k))
+        if acc:   # the reading against gravity's at the segment start, weighted into the interval's mean
+            reading = ca.mtimes(M, g_acc * rotate_inverse(Q, up_k)) + c
+            acc_mean += parts["cacc"][i] * (parts["yacc"][3 * i : 3 * i + 3] - reading)
         v = rotate_inverse(Q, n_k)  # C_i^m(t_j) m^i at the stamp; then back by the time offset
         w_mid = ca.mtimes(K, parts["ymid"][3 * i : 3 * i + 3]) + eps
         v = rotate_inverse(quat_conj(quat_exp(tau * w_mid)), v)
         r_mag = (parts["ymag"][3 * i : 3 * i + 3] - ca.mtimes(S, v) - h) * (w_mag * parts["wseg"][i])
         res.append(huber_scaled(r_mag, huber))
+        turned, seg_dt = 0, 0
         for l in range(L):
             j = i * L + l
             dt = parts["dt"][j]
             wa = ca.mtimes(K, parts["ya"][3 * j : 3 * j + 3]) + eps
             wb = ca.mtimes(K, parts["yb"][3 * j : 3 * j + 3]) + eps
             Q = quat_mul(Q, quat_exp(0.5 * (wa + wb) * dt + (dt * dt / 12.0) * ca.cross(wa, wb)))
+            if l == 0:
+                w_start = wa
+            turned, seg_dt = turned + (wb - wa), seg_dt + dt   # padded sub-steps add nothing (wa = wb)
+        if acc:   # turning about a point r away: the reading of alpha x r + w x (w x r) at the segment start
+            lever = ca.cross(turned / seg_dt, lever_m) + ca.cross(w_start, ca.cross(w_start, lever_m))
+            acc_mean -= parts["cacc"][i] * ca.mtimes(M, lever)
     qE = quat_mul(quat_mul(quat_mul(quat_conj(Q), quat_conj(q_k)), parts["qD"]), quat_exp(phi_k1))
     res.append(ca.mtimes(Winv, 2.0 * qE[0] * qE[1:]) * parts["w_int"])
     if walk:
@@ -190,7 +209,7 @@ def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool =
     if acc:
         res.append(acc_mean * parts["w_acc"])
         up_k1 = rotate_inverse(quat_exp(phi_k1), rotate_inverse(parts["qD"], ca.mtimes(Cbar.T, u_i)))   # at node k+1
-        rest = lambda y, up: ca.mtimes(A, y) + b - g_acc * up
+        rest = lambda y, up: y - ca.mtimes(M, g_acc * up) - c
         res.append(rest(parts["yrest0"], up_k) * parts["wrest0"] + rest(parts["yrest1"], up_k1) * parts["wrest1"])
     return ca.vertcat(*res)
 

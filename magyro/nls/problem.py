@@ -104,7 +104,7 @@ class JointProblem:
             "physical", [th, g], [S, h, K, eps, m_i, tau], ["theta", "g"], ["S", "h", "K", "eps", "m_i", "tau"]
         )
         self.accelerometer_function = ca.Function("accelerometer", [th, g], list(unpack_accelerometer(th, g)),
-                                                  ["theta", "g"], ["A", "b", "u_i", "g_m_s2"]) if acc else None
+                                                  ["theta", "g"], ["A", "b", "u_i", "g_m_s2", "lever_m"]) if acc else None
         self._solver = None
 
     # ------------------------------------------------------------------ MX graph

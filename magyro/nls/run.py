@@ -82,11 +82,13 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
 def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.ndarray:
     """What the hand's correlated acceleration adds to the corrections' covariance (`magyro.nls.hand_motion`), its
     size and autocorrelation measured at the solution (`magyro.nls.accelerometer.hand_motion`)."""
-    A, b = (np.array(v) for v in problem.accelerometer_function(sol.x[: problem.n_theta], sol.p[: problem.n_glob_p])[:2])
+    theta, g = sol.x[: problem.n_theta], sol.p[: problem.n_glob_p]
+    A, b, _, _, lever = (np.array(v) for v in problem.accelerometer_function(theta, g))
+    K, eps = (np.array(v) for v in problem.physical_function(theta, g)[2:4])
     start = lin.accelerometer
     r = residual_matrix(problem, sol.x, sol.p_casadi) if sol.residuals is None else sol.residuals
-    hand = hand_motion(specific_force_excess(start, A, b.ravel()), sol.acc_weight, start,
-                       solved_accelerometer_residuals(problem, r, sol.acc_weight))
+    excess = specific_force_excess(start, A, b.ravel(), K, eps.ravel(), lever.ravel())
+    hand = hand_motion(excess, sol.acc_weight, start, solved_accelerometer_residuals(problem, r, sol.acc_weight))
     weights_hand = np.sqrt(np.maximum(1.0 / np.maximum(sol.acc_weight, 1e-300) ** 2 - white_variance(start), 0.0))
     return hand_covariance_term(problem, sol.x, sol.p, reduced, np.linalg.inv(reduced.information), hand.hand_std_m_s2,
                                 weights_hand * (sol.acc_weight > 0), hand.correlation)

@@ -26,15 +26,20 @@ class AccelerometerCalibration:
     std_K_a: np.ndarray        # (3, 3) upper
     std_bias_m_s2: np.ndarray
     std_misalignment_deg: np.ndarray
+    lever_arm_m: np.ndarray | None = None       # from the point the device turned about, in the magnetometer's frame
+    std_lever_arm_m: np.ndarray | None = None
 
     @classmethod
-    def from_reported(cls, K_a, bias_m_s2, C_b_a, g_m_s2, up_i, std_vector) -> "AccelerometerCalibration":
+    def from_reported(cls, K_a, bias_m_s2, C_b_a, g_m_s2, up_i, std_vector, lever_arm_m=None,
+                      std_lever_arm_m=None) -> "AccelerometerCalibration":
         """From the parameters and the std of the reported vector (`magyro.nls.accelerometer.ACC_REPORTED`)."""
         std_K = np.zeros((3, 3))
         for k, (r, c) in enumerate(UPPER):
             std_K[r, c] = std_vector[k]
         return cls(np.asarray(K_a, float), np.asarray(bias_m_s2, float), np.asarray(C_b_a, float), float(g_m_s2),
-                   np.asarray(up_i, float), std_K, np.asarray(std_vector[6:9], float), np.asarray(std_vector[9:12], float))
+                   np.asarray(up_i, float), std_K, np.asarray(std_vector[6:9], float), np.asarray(std_vector[9:12], float),
+                   None if lever_arm_m is None else np.asarray(lever_arm_m, float),
+                   None if std_lever_arm_m is None else np.asarray(std_lever_arm_m, float))
 
     @property
     def euler_deg(self) -> np.ndarray:
@@ -53,11 +58,13 @@ class AccelerometerCalibration:
 
     def to_dict(self) -> dict:
         return {"K_a": as_list(self.K_a), "bias_m_s2": as_list(self.bias_m_s2), "C_b_a": as_list(self.C_b_a),
-                "euler_deg": as_list(self.euler_deg), "g_m_s2": float(self.g_m_s2), "up_i": as_list(self.up_i)}
+                "euler_deg": as_list(self.euler_deg), "g_m_s2": float(self.g_m_s2), "up_i": as_list(self.up_i),
+                **({} if self.lever_arm_m is None else {"lever_arm_m": as_list(self.lever_arm_m)})}
 
     def std_dict(self) -> dict:
         return {"K_a": as_list(self.std_K_a), "bias_m_s2": as_list(self.std_bias_m_s2),
-                "misalignment_deg": as_list(self.std_misalignment_deg)}
+                "misalignment_deg": as_list(self.std_misalignment_deg),
+                **({} if self.std_lever_arm_m is None else {"lever_arm_m": as_list(self.std_lever_arm_m)})}
 
     @classmethod
     def from_dict(cls, data: dict, std: dict | None) -> "AccelerometerCalibration":
@@ -70,7 +77,9 @@ class AccelerometerCalibration:
         return cls(read_array(data, "K_a", (3, 3), where), read_array(data, "bias_m_s2", (3,), where), C,
                    read_number(data, "g_m_s2", where, finite=True),
                    read_array(data, "up_i", (3,), where) if "up_i" in data else np.array([0.0, 0.0, 1.0]),
-                   zero("K_a", (3, 3)), zero("bias_m_s2", (3,)), zero("misalignment_deg", (3,)))
+                   zero("K_a", (3, 3)), zero("bias_m_s2", (3,)), zero("misalignment_deg", (3,)),
+                   read_array(data, "lever_arm_m", (3,), where) if "lever_arm_m" in data else None,
+                   zero("lever_arm_m", (3,)) if "lever_arm_m" in data else None)
 
     def table_lines(self) -> list[str]:
         lines = ["accelerometer K_a (scale on diagonal, non-orthogonality above), +/- 1 sigma"]
@@ -82,5 +91,8 @@ class AccelerometerCalibration:
         e, se = self.euler_deg, self.std_misalignment_deg
         lines.append("misalignment C_b_a, roll pitch yaw (deg)  "
                      + "  ".join(f"{e[i]:+8.3f} +/- {se[i]:.3f}" for i in range(3)))
+        if self.lever_arm_m is not None:
+            lines.append("turned about a point, lever arm (cm, magnetometer frame)  " + "  ".join(
+                f"{100 * self.lever_arm_m[i]:+.1f} +/- {100 * self.std_lever_arm_m[i]:.1f}" for i in range(3)))
         lines.append(f"gravity {self.g_m_s2:.5f} m/s^2 (given)")
         return lines
