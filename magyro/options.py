@@ -28,6 +28,10 @@ class StdBounds:
     nonorthogonality_deg: float = 1.0   # K_g above the diagonal, as angles
     bias_deg_s: float = 0.5
     misalignment_deg: float = 2.0
+    acc_scale_ppm: float = 20000.0      # the accelerometer's (--accelerometer), on the solved std: K_a diagonal
+    acc_nonorthogonality_deg: float = 1.0
+    acc_bias_m_s2: float = 0.2
+    acc_misalignment_deg: float = 2.0
 
 
 @dataclass(frozen=True)

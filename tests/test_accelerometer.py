@@ -115,3 +115,14 @@ def test_still_hand_recovers_the_simulated_accelerometer_within_its_std(seed):
     assert np.all(np.abs(np.diag(acc.K_a) - np.diag(t["K_a"])) < 3e-3) and np.all(np.abs(z_b * acc.std_bias_m_s2) < 0.05)
     z_g = (cal.bias_deg_s - np.asarray(truth["gyro"]["bias_deg_s"])) / cal.std.bias_deg_s
     assert np.all(np.abs(z_g) < 4), z_g
+
+
+def test_a_device_swung_too_fast_is_refused_for_its_accelerometer(run_magyro, assert_plain_failure):
+    """BROAD trial 7 (real, turned at up to 1446 deg/s with 3 g of hand acceleration): the accelerometer's std counts
+    the hand, and it is past the refusal bound: exit 3 saying so and what to do, not a calibration off by 15 %."""
+    from conftest import SHIPPED_BROAD_02
+
+    trial_07 = SHIPPED_BROAD_02.with_name("broad-07.parquet")
+    message = assert_plain_failure(run_magyro("solve", str(trial_07), "--accelerometer", "-q"), 3)
+    assert "accelerometer's calibration is too uncertain" in message and "ppm (bound 20000)" in message
+    assert "turn the device more slowly" in message and "--force" in message

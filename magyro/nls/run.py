@@ -74,6 +74,7 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
         cov_theta = cov_theta + hand_term(problem, lin, sol, reduced)
     cal = assemble(problem, prep, grid, sol, reduced, method, time.perf_counter() - t_start, cov_theta, disturbance)
     cal.warnings.extend(gate_warnings or solved_accuracy_gate(cal, options))
+    cal.warnings.extend(accelerometer_gate(cal, options))
     if method.trajectory:
         cal.trajectory = attitude_trajectory(problem, grid, lin, sol.x, reduced, prep.session, cal.R, cal.h, cov_theta)
     return cal
@@ -137,6 +138,42 @@ def solved_accuracy_gate(cal: Calibration, options: Options) -> list[str]:
         return [f"solved with --force although the std exceeds its bounds: {summary}{cause}"]
     raise ObservabilityError(f"the calibration is too uncertain to be worth having: {summary}{cause} (--force reports it "
                              f"anyway; {REFUSAL_BOUND_NOTE})")
+
+
+def accelerometer_shortfalls(acc, bounds) -> list[str]:
+    """The accelerometer's one-sigma above the refusal bound (`StdBounds.acc_*`), each said with its bound."""
+    out = []
+    for i in range(3):
+        if 1e6 * acc.std_K_a[i, i] > bounds.acc_scale_ppm:
+            out.append(f"scale K_a[{i},{i}] {significant(1e6 * acc.std_K_a[i, i])} ppm (bound {bounds.acc_scale_ppm:g})")
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        if np.rad2deg(acc.std_K_a[i, j]) > bounds.acc_nonorthogonality_deg:
+            out.append(f"non-orthogonality K_a[{i},{j}] {significant(np.rad2deg(acc.std_K_a[i, j]))} deg "
+                       f"(bound {bounds.acc_nonorthogonality_deg:g})")
+    for i, axis in enumerate("xyz"):
+        if acc.std_bias_m_s2[i] > bounds.acc_bias_m_s2:
+            out.append(f"bias {axis} {significant(acc.std_bias_m_s2[i])} m/s^2 (bound {bounds.acc_bias_m_s2:g})")
+        if acc.std_misalignment_deg[i] > bounds.acc_misalignment_deg:
+            out.append(f"misalignment d{axis} {significant(acc.std_misalignment_deg[i])} deg "
+                       f"(bound {bounds.acc_misalignment_deg:g})")
+    return out
+
+
+def accelerometer_gate(cal: Calibration, options: Options) -> list[str]:
+    """The refusal bound on the accelerometer's solved std (exit 3; with --force a warning). Its std counts the hand's
+    acceleration: a device swung fast, or far from the point it turns about, leaves gravity too little to say."""
+    if cal.accelerometer is None:
+        return []
+    shortfalls = accelerometer_shortfalls(cal.accelerometer, options.max_std)
+    if not shortfalls:
+        return []
+    summary = ("the accelerometer's calibration is too uncertain to be worth having: one-sigma " + ", ".join(shortfalls)
+               + "; the hand's acceleration while turning swamps what gravity says: turn the device more slowly, "
+                 "about its own middle, with a few seconds still between turns")
+    if options.force:
+        return [f"solved with --force although {summary}"]
+    raise ObservabilityError(f"{summary} (--force reports it anyway; without --accelerometer the gyro and the "
+                             f"magnetometer are calibrated alone)")
 
 
 def gate_checked(prep: Prepared) -> bool:
