@@ -264,7 +264,7 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
         p = problem_parameters(problem, prep, lin, sigma_mag, tau0, density, acc_weight)
         p_dm = ca.DM(p)   # one numpy -> DM conversion for the solver and the residuals (8.5M numbers at 360k samples)
         t0 = time.perf_counter()
-        x = np.array(solver(x0=x, p=p_dm)["x"]).ravel()
+        x = problem.solve(solver, x, p_dm)
         seconds += time.perf_counter() - t0
         stats = dict(solver.stats())
         iterations += int(stats["iter_count"])
