@@ -187,7 +187,7 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
     C, Kg = qr_split(K)
     R = np.linalg.inv(S)
     h_samples = hard_iron_at_samples(problem, sol.x, sol.p, prep.session) if problem.walk else h
-    r = residual_matrix(problem, sol.x, sol.p_casadi) if sol.residuals is None else sol.residuals
+    r = residual_matrix(problem, sol.x, sol.p) if sol.residuals is None else sol.residuals
     fit = residual_summary(problem, r, prep.session, R, h_samples)
     # No a-posteriori variance-factor scaling: the noise levels are already calibrated (given, from
     # rests with their correlation, or re-weighted from the residuals' effective scale); the plain

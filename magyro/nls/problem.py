@@ -181,17 +181,36 @@ class JointProblem:
     def hessian_function(self) -> ca.Function:
         return self._hessian_graph[0]
 
-    def solve(self, solver, x0, p: ca.DM) -> np.ndarray:
-        """IPOPT from x0 with the parameters p (a DM, converted once by the caller): the solution, the last
-        Gauss-Newton Hessian IPOPT evaluated kept (`last_hessian`)."""
-        self._hessian_graph[1]
+    def solve(self, solver, x0: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, dict]:
+        """(the solution, IPOPT's stats): IPOPT from x0 with the parameters p, through buffers (no DM of the
+        parameters); the last Gauss-Newton Hessian IPOPT evaluated is kept (`last_hessian`)."""
+        self._hessian_graph
         self._kept.start(p)
-        return np.array(solver(x0=x0, p=p)["x"]).ravel()
+        buffer, run = solver.buffer()
+        free = np.full(self.n_x, np.inf)
+        held = {"x0": np.array(x0, dtype=float), "p": p, "lbx": -free, "ubx": free}
+        for name, value in held.items():
+            buffer.set_arg(solver.index_in(name), memoryview(value))
+        x = np.zeros(self.n_x)
+        buffer.set_res(solver.index_out("x"), memoryview(x))
+        try:
+            run()
+        finally:
+            self._kept.stop()
+        return x, dict(buffer.stats())
 
-    def last_hessian(self, p: ca.DM):
-        """(x, triu(J^T J) at x) of the last iteration of the last `solve` with these parameters p, or None."""
+    def last_hessian(self, p: np.ndarray):
+        """(x, the nonzeros of triu(J^T J) at x) of the last iteration of the last `solve` with these parameters p,
+        or None."""
         kept = getattr(self, "_kept", None)
         return kept.last if kept is not None and kept.p is p else None
+
+    def hessian_values(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """The nonzeros of triu(J^T J) at (x, p), in the order of `hessian_sparsity`."""
+        return evaluate(self.hessian_function, x, p)[0]
+
+    def gradient_values(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+        return evaluate(self.gradient_function, x, p)[0]
 
     # ---------------------------------------------------------------- numbers in
     def parameters(self, lin: Linearisation, y_mag, sigma_mag: float, sigma_gyro_density: float,
@@ -274,18 +293,27 @@ class JointProblem:
 
 
 class KeptHessian(ca.Callback):
-    """IPOPT's hess_lag, lam_f J^T J, keeping the last J^T J it evaluated: at convergence the std is taken from it
-    (the Gauss-Newton Hessian of the last iterate, one evaluation of the Gauss-Newton kernel over every interval
-    saved: 1.2-1.5 s at 360k samples). The parameters are those of the running `JointProblem.solve`."""
+    """IPOPT's hess_lag, lam_f J^T J, keeping the last J^T J it evaluated (its nonzeros): at convergence the std is
+    taken from it (the Gauss-Newton Hessian of the last iterate: one evaluation of the Gauss-Newton kernel over
+    every interval saved, 1.2-1.5 s at 360k samples). The parameters are those of the running
+    `JointProblem.solve`. Evaluated through buffers: no DM is made of x, of the 8.5M parameters or of H."""
 
     def __init__(self, hessian: ca.Function, n_x: int):
         ca.Callback.__init__(self)
         self.hessian, self.n_x = hessian, n_x
         self.p, self.last = None, None
+        self.buffer = self.run = None
         self.construct("kept_gauss_newton_hessian", {})
 
-    def start(self, p: ca.DM) -> None:
+    def start(self, p: np.ndarray) -> None:
+        """Before a solve: its parameters, and one evaluation buffer for all its iterations (a new buffer is new
+        work memory, 240 MB at 360k samples, and its first touch cost 0.3 s an iteration)."""
         self.p, self.last = p, None
+        self.buffer, self.run = self.hessian.buffer()
+
+    def stop(self) -> None:
+        """After a solve: the work memory given back."""
+        self.buffer = self.run = None
 
     def get_n_in(self):
         return 2
@@ -299,11 +327,36 @@ class KeptHessian(ca.Callback):
     def get_sparsity_out(self, i):
         return self.hessian.sparsity_out(0)
 
-    def eval(self, args):
-        x, lam_f = args
-        H = self.hessian(x, self.p)
-        self.last = (np.array(x).ravel(), H)
-        return [H * float(lam_f)]
+    def has_eval_buffer(self):
+        return True
+
+    def eval_buffer(self, arg, res):
+        x = np.frombuffer(arg[0], dtype=float).copy()
+        lam_f = float(np.frombuffer(arg[1], dtype=float)[0])
+        values = np.zeros(self.hessian.nnz_out(0))
+        self.buffer.set_arg(0, memoryview(x))
+        self.buffer.set_arg(1, memoryview(self.p))
+        self.buffer.set_res(0, memoryview(values))
+        self.run()
+        self.last = (x, values)
+        np.multiply(values, lam_f, out=np.frombuffer(res[0], dtype=float))
+        return 0
+
+
+def evaluate(fn: ca.Function, *args) -> list[np.ndarray]:
+    """fn at numpy arguments (each its nonzeros, in order), its outputs' nonzeros as numpy arrays: through CasADi's
+    buffers, so no DM is made of an argument (a DM of the 8.5M parameters at 360k samples costs 0.6-1 s and 68 MB)
+    or of an output."""
+    buffer, run = fn.buffer()
+    held = [np.ascontiguousarray(a, dtype=float).reshape(-1) for a in args]
+    for i, a in enumerate(held):
+        assert a.size == fn.nnz_in(i), (fn.name(), i, a.size, fn.nnz_in(i))
+        buffer.set_arg(i, memoryview(a))
+    out = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
+    for i, o in enumerate(out):
+        buffer.set_res(i, memoryview(o))
+    run()
+    return out
 
 
 def but_first_column(M):

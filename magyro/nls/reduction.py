@@ -32,7 +32,7 @@ class Reduced:
         return cho_solve_banded((self.factor, False), b)
 
 
-def reduce_hessian(H_triu: ca.DM, G: int, block: int = 3) -> Reduced:
+def reduce_hessian(H_triu, G: int, block: int = 3) -> Reduced:
     """Eliminate the attitudes (after the first G unknowns) from triu(J^T J): the attitude block is block
     tridiagonal, so a banded Cholesky (bandwidth 2 block - 1) factorises it in O(N); no dense N x N matrix is ever
     formed. The blocks are read off the nonzeros in the order of `problem.hessian_sparsity` (no sparse slicing of
@@ -42,6 +42,9 @@ def reduce_hessian(H_triu: ca.DM, G: int, block: int = 3) -> Reduced:
         factor = cholesky_banded(banded_upper(A, U))
         Dinv_Hpt = cho_solve_banded((factor, False), H_tp.T)
     except np.linalg.LinAlgError:   # not positive definite (a forced solve of a motion that excites too little)
+        if isinstance(H_triu, np.ndarray):
+            from magyro.nls.problem import hessian_sparsity
+            H_triu = ca.DM(hessian_sparsity(len(A), G, block), H_triu)
         D_triu = H_triu[G:, G:]
         D = D_triu + ca.triu(D_triu, False).T
         solver = ca.Linsol("attitude_block", "ldl", D.sparsity())
@@ -52,15 +55,20 @@ def reduce_hessian(H_triu: ca.DM, G: int, block: int = 3) -> Reduced:
     return Reduced(H_tt - H_tp @ Dinv_Hpt, H_tp, A, U, factor, Dinv_Hpt, block)
 
 
-def hessian_blocks(H_triu: ca.DM, G: int, b: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(H_tt (G, G) full, H_tp (G, b n), D's diagonal blocks (n, b, b) full, its upper blocks (n-1, b, b))."""
-    n = (H_triu.size1() - G) // b
+def hessian_blocks(H_triu, G: int, b: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(H_tt (G, G) full, H_tp (G, b n), D's diagonal blocks (n, b, b) full, its upper blocks (n-1, b, b)) of triu(H):
+    a DM, or the nonzeros (numpy) of a Hessian in the order of `problem.hessian_sparsity`."""
     sizes = [G + b + c + 1 for c in range(b)]
-    expected = G * (G + 1) // 2 + n * sum(sizes) - b * b
-    if H_triu.nnz() != expected or n < 1:   # not the joint problem's own pattern: the general reading
-        return hessian_blocks_from_triplets(H_triu, G, b)
-    values = np.array(H_triu.nonzeros())
     n_tt = G * (G + 1) // 2
+    if isinstance(H_triu, np.ndarray):
+        values = H_triu
+        n = (len(values) - n_tt + b * b) // sum(sizes)
+    else:
+        n = (H_triu.size1() - G) // b
+        expected = n_tt + n * sum(sizes) - b * b
+        if H_triu.nnz() != expected or n < 1:   # not the joint problem's own pattern: the general reading
+            return hessian_blocks_from_triplets(H_triu, G, b)
+        values = np.array(H_triu.nonzeros())
     H_tt = np.zeros((G, G))
     rows, cols = np.triu_indices(G)
     order = np.lexsort((rows, cols))      # column-major order of the upper triangle

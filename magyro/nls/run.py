@@ -55,7 +55,7 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     sol = solve_passes(problem, prep, lin, method, level_estimator(problem, prep, lin))
     step("the uncertainty: information and the room's field")
     reduced = reduce_hessian(solved_hessian(problem, sol), problem.n_theta, problem.B)
-    decrement = gauss_newton_decrement(reduced, np.array(problem.gradient_function(sol.x, sol.p_casadi)).ravel())
+    decrement = gauss_newton_decrement(reduced, problem.gradient_values(sol.x, sol.p))
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT) and not prep.analysis.full_rank:
         raise ObservabilityError(   # forced past the gate, and the data indeed do not pin a solution down
             f"--force cannot help the least squares here: the motion excites only {prep.analysis.rank} of the 12 gyro "
@@ -84,8 +84,8 @@ def solved_hessian(problem: JointProblem, sol):
     evaluated at the solution. At convergence the two points differ by a step too small to matter: the
     estimates are those of the solution either way, and the std moved by < 1e-6 of itself where compared
     (benchmarks/same_estimates.py on BROAD 02, paper-table1 and the bench_limit sessions)."""
-    kept = problem.last_hessian(sol.p_casadi)
-    return kept[1] if kept is not None else problem.hessian_function(sol.x, sol.p_casadi)
+    kept = problem.last_hessian(sol.p)
+    return kept[1] if kept is not None else problem.hessian_values(sol.x, sol.p)
 
 
 def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.ndarray:
@@ -93,7 +93,7 @@ def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.nda
     size and autocorrelation measured at the solution (`magyro.nls.accelerometer.hand_motion`)."""
     A, b = (np.array(v) for v in problem.accelerometer_function(sol.x[: problem.n_theta], sol.p[: problem.n_glob_p])[:2])
     start = lin.accelerometer
-    r = residual_matrix(problem, sol.x, sol.p_casadi) if sol.residuals is None else sol.residuals
+    r = residual_matrix(problem, sol.x, sol.p) if sol.residuals is None else sol.residuals
     hand = hand_motion(specific_force_excess(start, A, b.ravel()), sol.acc_weight, start,
                        solved_accelerometer_residuals(problem, r, sol.acc_weight))
     weights_hand = np.sqrt(np.maximum(1.0 / np.maximum(sol.acc_weight, 1e-300) ** 2 - white_variance(start), 0.0))
