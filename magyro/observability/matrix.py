@@ -46,12 +46,25 @@ def field_on_gyro_times(t_gyro_s: np.ndarray, t_mag_s: np.ndarray, field_m: np.n
     return inside, interpolate_rows(t_gyro_s[inside], t_mag_s, field_m)
 
 
+PIECE = 65536   # samples per piece of the sums over the session: their temporaries are a piece's, not the session's
+
+
 def information_integral(t_gyro_s, gyro_rad_s, t_mag_s, field_m) -> np.ndarray:
-    """The 12 x 12 integral of M^T M over the session (paper eq. 11)."""
+    """The 12 x 12 integral of M^T M over the session (paper eq. 11).
+
+    M = [u_1 (m x), u_2 (m x), u_3 (m x), u_4 (m x)] with u = (y, 1), so M^T M = (u u^T) kron ((m x)^T (m x)) and
+    (m x)^T (m x) = |m|^2 I - m m^T: the integral is one (16 x 9) matrix product of the weighted u_j u_l against
+    those 9 numbers per sample, in pieces (no (N, 3, 12) M)."""
     inside, f = field_on_gyro_times(t_gyro_s, t_mag_s, field_m)
-    M = m_matrices(gyro_rad_s[inside], f)
+    y = gyro_rad_s[inside]
     w = trapezoid_weights(t_gyro_s[inside])
-    return np.einsum("k,kia,kib->ab", w, M, M)
+    T = np.zeros((16, 9))
+    for a in range(0, len(w), PIECE):
+        fk, yk, wk = f[a : a + PIECE], y[a : a + PIECE], w[a : a + PIECE]
+        u = np.column_stack([yk, np.ones(len(yk))])
+        P = (np.sum(fk * fk, axis=1)[:, None, None] * np.eye(3) - fk[:, :, None] * fk[:, None, :]).reshape(-1, 9)
+        T += ((wk[:, None] * u)[:, :, None] * u[:, None, :]).reshape(-1, 16).T @ P
+    return T.reshape(4, 4, 3, 3).transpose(0, 2, 1, 3).reshape(12, 12)
 
 
 def cumulative_information(t_gyro_s, gyro_rad_s, t_mag_s, field_m, t_checkpoints_s) -> np.ndarray:
