@@ -9,7 +9,8 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
-from scipy.linalg import cho_solve_banded, cholesky_banded
+
+from magyro.nls.banded import cho_solve_banded, cholesky_banded
 
 
 @dataclass(frozen=True)
