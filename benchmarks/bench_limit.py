@@ -162,8 +162,8 @@ def measure_limit_here(session_path: str, repeat: int = 3) -> dict:
     n, G, B = problem.n_int, problem.n_theta, problem.B
     x = np.zeros(problem.n_x)
     states = np.vstack([np.zeros(B), x[G:].reshape(-1, B)])
-    args = [ca.DM(x[:G]), ca.DM(states[:-1].T), ca.DM(states[1:].T), ca.DM(p[: problem.n_glob_p]),
-            ca.DM(p[problem.n_glob_p:].reshape(n, problem.n_data).T)]
+    args = [ca.DM(x[:G]), ca.DM(states[:-1].T), ca.DM(states[1:].T), ca.DM(problem.globals_of(p)),
+            ca.DM(problem.data_of(p).T)]
     k = problem.gn_kernel
     inputs = [ca.MX.sym(k.name_in(i), k.sparsity_in(i)) for i in range(k.n_in())]
     parts = ca.Function("parts", inputs, [ca.densify(v) for v in k(*inputs)[1:]])   # as problem._hessian_graph

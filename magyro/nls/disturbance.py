@@ -56,7 +56,7 @@ def disturbance_covariance(problem: JointProblem, x: np.ndarray, p: np.ndarray, 
 
     Serves the solve (at its solution) and the prediction before it (at the linearisation point).
     """
-    theta, g = x[: problem.n_theta], p[: problem.n_glob_p]
+    theta, g = x[: problem.n_theta], problem.globals_of(p)
     S, h, K, eps, m_i, tau = (np.array(v) for v in problem.physical_function(theta, g))
     info_inv = np.linalg.inv(reduced.information)
     if problem.walk:   # the field's magnitude with the moving hard iron taken out: its walk is modelled
@@ -143,8 +143,8 @@ def disturbance_sensitivities(problem: JointProblem, x, p, reduced: Reduced, C_m
     grid, B, G = problem.grid, problem.B, problem.n_theta
     s = grid.stride
     W = np.concatenate([np.zeros((1, B, G)), reduced.Dinv_Hpt.reshape(problem.n_int, B, -1)[:-1]])
-    w_mag = global_number(p, "w_mag")
-    field_scale = global_number(p, "field_scale")
+    w_mag = global_number(problem.globals_of(p), "w_mag")
+    field_scale = global_number(problem.globals_of(p), "field_scale")
     rows_of = ThetaRows(problem, x, p)
     states = rows_of.states                                                  # node 0 (fixed) .. n_int
     for a in range(0, problem.n_int, chunk):
@@ -174,11 +174,11 @@ class ThetaRows:
     def __init__(self, problem: JointProblem, x, p):
         self.problem = problem
         self.x_theta = np.asarray(x[: problem.n_theta], dtype=float)
-        self.g_values = np.asarray(p[: problem.n_glob_p], dtype=float)
+        self.g_values = problem.globals_of(p).astype(float)
         self.theta = ca.DM(self.x_theta)
         self.g = ca.DM(self.g_values)
         self.states = np.vstack([np.zeros(problem.B), x[problem.n_theta :].reshape(-1, problem.B)])   # nodes 0..n_int
-        self.data = p[problem.n_glob_p :].reshape(problem.n_int, problem.n_data)
+        self.data = problem.data_of(p)
         k = problem.gn_kernel
         inputs = [ca.MX.sym(k.name_in(i), k.sparsity_in(i)) for i in range(k.n_in())]
         self.rows = ca.Function("interval_theta_rows", inputs, [ca.densify(k(*inputs)[0])])

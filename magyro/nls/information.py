@@ -86,7 +86,7 @@ def covariance_and_disturbance(problem: JointProblem, lin: Linearisation, p, ses
         cov_theta, disturbance = disturbance_covariance(problem, np.zeros(problem.n_x), p, reduced,
                                                         lin.C_m_i_nominal, session)
     C0, _ = qr_split(lin.K0)
-    return propagate(problem, np.zeros(problem.n_theta), p[: problem.n_glob_p], cov_theta, C0, jacobians), disturbance
+    return propagate(problem, np.zeros(problem.n_theta), problem.globals_of(p), cov_theta, C0, jacobians), disturbance
 
 
 def information_std(problem: JointProblem, lin: Linearisation, p, session=None) -> dict:

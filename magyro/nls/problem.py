@@ -45,6 +45,7 @@ from magyro.nls.grid import Grid, gyro_at_mag_midpoints
 from magyro.nls.interval import (ACC_GLOBAL_LAYOUT, GLOBAL_LAYOUT, N_ACC_THETA, N_GLOBAL, NO_HUBER, data_layout,
                                  global_size, kernel_key, kernel_set, node_size, unpack_accelerometer, unpack_globals)
 
+SAFE_SLOTS = ("ymag", "yacc", "yrest0", "yrest1")   # data whose every use is weighted by a weight of the data
 HOLE_LINK_STD_RAD = 0.1   # across a hole in the gyro record the attitudes are linked this loosely (a gauge only)
 
 
@@ -91,6 +92,17 @@ class JointProblem:
         self.n_glob_p = global_size(acc)
         self.n_data = sum(k for _, k in data_layout(s, L, walk, acc))
         self.n_x = self.n_theta + self.B * self.n_int
+        # The globals ride in leading columns of the data matrix, in slots whose every use is weighted by a weight
+        # that is 0 there (the magnetometer and accelerometer samples), so those columns add nothing but zeros: then
+        # the kernels' map reads the parameters reshaped whole, with no slice of them (a copy of every parameter in
+        # every evaluation and 136 MB of index list and pattern at 360k samples)
+        offsets, o = {}, 0
+        for name, k in data_layout(s, L, walk, acc):
+            offsets[name], o = (o, k), o + k
+        safe = [a + i for name in SAFE_SLOTS if name in offsets for a, k in [offsets[name]] for i in range(k)]
+        self.n_lead = -(-self.n_glob_p // len(safe))
+        self.global_positions = np.array([c * self.n_data + f for c in range(self.n_lead) for f in safe][: self.n_glob_p])
+        self.n_p = self.n_data * (self.n_lead + self.n_int)
         self.n_res_per_interval = 3 * s + 3 + (3 if walk else 0) + (6 if acc else 0)
 
         self.kernel_key = kernel_key(s, L, self.n_theta, walk)
@@ -107,25 +119,43 @@ class JointProblem:
 
     # ------------------------------------------------------------------ MX graph
     def _split(self, x, p):
+        """The kernels' map arguments over the n_lead leading columns (zero states) and the intervals."""
         theta = x[: self.n_theta]
         phi = ca.reshape(x[self.n_theta :], self.B, self.n_int)
-        phi_k = ca.horzcat(ca.MX.zeros(self.B, 1), but_last_column(phi))   # a split: a column slice costs 7x more
-        g = p[: self.n_glob_p]
-        D = ca.reshape(p[self.n_glob_p :], self.n_data, self.n_int)       # (a slice: vertsplit costs 4x more here)
-        return theta, phi_k, phi, g, D
+        lead = ca.MX.zeros(self.B, self.n_lead)
+        phi_k = ca.horzcat(lead, ca.MX.zeros(self.B, 1), but_last_column(phi))   # a split: a column slice costs 7x more
+        g = p[self.global_positions.tolist()]
+        D = ca.reshape(p, self.n_data, self.n_lead + self.n_int)
+        return theta, phi_k, ca.horzcat(lead, phi), g, D
+
+    def _intervals(self, M):
+        """M without its n_lead leading columns (those of the globals)."""
+        return ca.horzsplit(M, [0, self.n_lead, M.shape[1]])[1]
+
+    @property
+    def n_map(self) -> int:
+        return self.n_lead + self.n_int
+
+    def globals_of(self, p: np.ndarray) -> np.ndarray:
+        """The global parameters (`interval.GLOBAL_LAYOUT`) of a parameter vector."""
+        return np.asarray(p)[self.global_positions]
+
+    def data_of(self, p: np.ndarray) -> np.ndarray:
+        """The intervals' data of a parameter vector, (n_int, n_data)."""
+        return np.asarray(p)[self.n_lead * self.n_data :].reshape(self.n_int, self.n_data)
 
     # The three MX graphs are built on first use: the accuracy prediction and the CRLB need only
     # the Hessian, which saves two thirds of the graph-building time of `magyro observe`.
     @cached_property
     def _symbols(self):
         x = ca.MX.sym("x", self.n_x)
-        p = ca.MX.sym("p", self.n_glob_p + self.n_data * self.n_int)
+        p = ca.MX.sym("p", self.n_p)
         return x, p, self._split(x, p)
 
     @cached_property
     def _residual_graph(self):
         x, p, args = self._symbols
-        r = ca.vec(self.residual_kernel.map(self.n_int)(*args))
+        r = ca.vec(self._intervals(self.residual_kernel.map(self.n_map)(*args)))
         return ca.Function("residuals", [x, p], [r]), 0.5 * ca.sumsqr(r)
 
     @property
@@ -135,7 +165,8 @@ class JointProblem:
     @cached_property
     def _gradient_graph(self):
         x, p, args = self._symbols
-        ssq, g_t, g_l, g_r = self.gradient_kernel.map(self.n_int)(*args)
+        ssq, g_t, g_l, g_r = self.gradient_kernel.map(self.n_map)(*args)   # the leading columns give zeros
+        g_l, g_r = self._intervals(g_l), self._intervals(g_r)
         grad_phi = ca.horzcat(but_first_column(g_l), ca.MX.zeros(self.B, 1)) + g_r
         grad = ca.vertcat(ca.sum2(g_t), ca.vec(grad_phi))
         grad_f = ca.Function("nlp_grad_f", [x, p], [0.5 * ca.sum2(ssq), grad], ["x", "p"], ["f", "grad_f_x"])
@@ -159,7 +190,8 @@ class JointProblem:
         inputs = [ca.MX.sym(k.name_in(i), k.sparsity_in(i)) for i in range(k.n_in())]
         hessian_parts = ca.Function("interval_hessian_parts", inputs, [ca.densify(v) for v in k(*inputs)[1:]])
         theta_shared = [True, False, False, True, False]          # theta and g are the same for every interval
-        H_tt, first, second = hessian_parts.map(self.n_int, theta_shared, [True, False, False], {})(*args)
+        H_tt, first, second = hessian_parts.map(self.n_map, theta_shared, [True, False, False], {})(*args)
+        first, second = self._intervals(first), self._intervals(second)   # the leading columns' H_tt part is 0
         columns = ca.horzcat(but_first_column(first), ca.MX.zeros(first.shape[0], 1)) + second    # node n = 1..n_int
         G, B = self.n_theta, self.B
         node_1 = np.sort(np.concatenate(   # node 1's values: no previous node's rows
@@ -254,7 +286,9 @@ class JointProblem:
         if self.accelerometer:
             cols.update(start.columns(acc_weight))
         data = np.concatenate([cols[k] for k, _ in data_layout(s, L, self.walk, self.accelerometer)], axis=1)
-        return np.concatenate([gvec, data.reshape(-1)])
+        lead = np.zeros(self.n_lead * self.n_data)
+        lead[self.global_positions] = gvec
+        return np.concatenate([lead, data.reshape(-1)])
 
     # ----------------------------------------------------------------- the solve
     def solver(self, ipopt_options: dict | None = None):

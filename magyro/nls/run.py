@@ -91,7 +91,7 @@ def solved_hessian(problem: JointProblem, sol):
 def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.ndarray:
     """What the hand's correlated acceleration adds to the corrections' covariance (`magyro.nls.hand_motion`), its
     size and autocorrelation measured at the solution (`magyro.nls.accelerometer.hand_motion`)."""
-    A, b = (np.array(v) for v in problem.accelerometer_function(sol.x[: problem.n_theta], sol.p[: problem.n_glob_p])[:2])
+    A, b = (np.array(v) for v in problem.accelerometer_function(sol.x[: problem.n_theta], problem.globals_of(sol.p))[:2])
     start = lin.accelerometer
     r = residual_matrix(problem, sol.x, sol.p) if sol.residuals is None else sol.residuals
     hand = hand_motion(specific_force_excess(start, A, b.ravel()), sol.acc_weight, start,

@@ -293,7 +293,7 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
         seconds += time.perf_counter() - t0
         iterations += int(stats["iter_count"])
         stats["iter_count"] = iterations
-        tau = float(problem.physical_function(x[: problem.n_theta], p[: problem.n_glob_p])[5].full().item())
+        tau = float(problem.physical_function(x[: problem.n_theta], problem.globals_of(p))[5].full().item())
         r = residual_matrix(problem, x, p) if (method.reweight_noise or estimating or problem.accelerometer) else None
         if estimating:
             step = variance_step(x, r, sigma_mag, density, tau0)
