@@ -54,7 +54,7 @@ def nominal_attitudes(session: Session, K0, eps0, t_node_s) -> tuple[np.ndarray,
     q = np.empty((len(t), 4))   # quaternions, turned into matrices at the nodes only (a twelfth of the samples)
     stretch = np.empty(len(t), dtype=int)
     for k, (a, b) in enumerate(stretch_bounds(t)):
-        q[a:b] = integrated_quaternions(t[a:b], w[a:b])
+        q[a:b] = so3.integrated_quaternions(t[a:b], w[a:b])
         stretch[a:b] = k
     i = np.clip(np.searchsorted(t, t_node_s, side="right") - 1, 0, len(t) - 1)
     ahead = t_node_s - t[i]
@@ -63,32 +63,6 @@ def nominal_attitudes(session: Session, K0, eps0, t_node_s) -> tuple[np.ndarray,
     return so3.quat_to_dcm(q[i]) @ so3.exp_so3(w[i] * ahead[:, None]), stretch[i], in_hole
 
 
-SCAN_BLOCK = 256   # samples per block of the attitude's prefix product
-
-
-def integrated_quaternions(t_s: np.ndarray, omega_rad_s: np.ndarray) -> np.ndarray:
-    """The unit quaternions of `so3.integrate_body_rates` (the same steps, from I), composed by a blocked prefix
-    product: log-depth within blocks of SCAN_BLOCK steps, then across the blocks' totals, so a long recording
-    takes 9 passes over its quaternions instead of log2(N) (19 at 360k samples). Only the order in which the
-    unit steps are multiplied differs (rounding, ~1e-16 a step)."""
-    dt = np.diff(t_s)[:, None]
-    wa, wb = omega_rad_s[:-1], omega_rad_s[1:]
-    steps = so3.exp_quat(0.5 * (wa + wb) * dt + (dt**2 / 12.0) * np.cross(wa, wb))
-    n = len(steps) + 1
-    blocks = -(-n // SCAN_BLOCK)
-    Q = np.zeros((blocks * SCAN_BLOCK, 4))
-    Q[:, 0] = 1.0
-    Q[1:n] = steps
-    Q = Q.reshape(blocks, SCAN_BLOCK, 4)
-    shift = 1
-    while shift < SCAN_BLOCK:
-        Q[:, shift:] = so3.quat_multiply(Q[:, :-shift], Q[:, shift:])
-        shift *= 2
-    if blocks > 1:
-        before = so3.cumulative_quat_product(Q[:-1, -1])      # everything before block k + 1
-        Q[1:] = so3.quat_multiply(before[:, None, :], Q[1:])
-    out = Q.reshape(-1, 4)[:n]
-    return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
 def aligned_stretches(C_nodes: np.ndarray, stretch: np.ndarray, in_hole: np.ndarray, field_m_nodes: np.ndarray,
