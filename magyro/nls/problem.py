@@ -184,34 +184,54 @@ class JointProblem:
         n_res n_int J_theta^T is ever held: at 360k samples it and its transpose took 4 x 260 MB of patterns
         and work vectors), and its contributions to its two nodes' columns already in compressed-column
         order, so node n's column values are interval n-1's second-node part plus interval n's first-node
-        part: one sum, no permutation."""
+        part: one sum, no permutation. The graph stops at the map's outputs; that sum and the values' order are
+        numpy's (`assemble_hessian`): done in the graph, the dense intermediates' patterns and work vectors took
+        230 MB more at 360k samples and 0.6 s more to build."""
         x, p, args = self._symbols
         k = self.gn_kernel
         inputs = [ca.MX.sym(k.name_in(i), k.sparsity_in(i)) for i in range(k.n_in())]
         hessian_parts = ca.Function("interval_hessian_parts", inputs, [ca.densify(v) for v in k(*inputs)[1:]])
         theta_shared = [True, False, False, True, False]          # theta and g are the same for every interval
-        H_tt, first, second = hessian_parts.map(self.n_map, theta_shared, [True, False, False], {})(*args)
-        first, second = self._intervals(first), self._intervals(second)   # the leading columns' H_tt part is 0
-        columns = ca.horzcat(but_first_column(first), ca.MX.zeros(first.shape[0], 1)) + second    # node n = 1..n_int
+        parts = ca.Function("gauss_newton_parts", [x, p],
+                            list(hessian_parts.map(self.n_map, theta_shared, [True, False, False], {})(*args)))
         G, B = self.n_theta, self.B
-        node_1 = np.sort(np.concatenate(   # node 1's values: no previous node's rows
+        self._node_1 = np.sort(np.concatenate(   # node 1's values: no previous node's rows
             [np.arange(o, o + G) for o in column_starts(G, B)]
             + [np.arange(o + G + B, o + G + B + c + 1) for c, o in enumerate(column_starts(G, B))]))
-        column_1, later = ca.horzsplit(columns, [0, 1, self.n_int]) if self.n_int > 1 else (columns, None)
-        values = ca.vertcat(H_tt, column_1[node_1.tolist()], *([] if later is None else [ca.vec(later)]))
-        H = ca.MX(hessian_sparsity(self.n_int, G, B), values)
-        hessian = ca.Function("gauss_newton_hessian", [x, p], [H])
-        self._kept = KeptHessian(hessian, self.n_x)
+        self._kept = KeptHessian(self, parts)
         lam_f = ca.MX.sym("lam_f")
         lam_g = ca.MX.sym("lam_g", 0)
         hess_lag = ca.Function(
             "nlp_hess_l", [x, p, lam_f, lam_g], [self._kept(x, lam_f)], ["x", "p", "lam_f", "lam_g"],
             ["triu_hess_gamma_x_x"])
-        return hessian, hess_lag
+        return parts, hess_lag
+
+    @cached_property
+    def hessian_pattern(self) -> ca.Sparsity:
+        return hessian_sparsity(self.n_int, self.n_theta, self.B)
+
+    def assemble_hessian(self, H_tt: np.ndarray, first: np.ndarray, second: np.ndarray, out: np.ndarray | None = None):
+        """The nonzeros of triu(J^T J) (in `out` when given) from the Gauss-Newton map's outputs' nonzeros: node n's
+        columns are interval n-1's second-node part plus interval n's first-node part (the intervals after the
+        leading columns of the globals), node 1 without a previous node's rows."""
+        size = first.size // self.n_map
+        F = first.reshape(self.n_map, size)[self.n_lead :]
+        columns = second.reshape(self.n_map, size)[self.n_lead :].copy()
+        columns[:-1] += F[1:]
+        n_tt, n_1 = len(H_tt), len(self._node_1)
+        out = np.empty(n_tt + n_1 + columns[1:].size) if out is None else out
+        out[:n_tt] = H_tt
+        out[n_tt : n_tt + n_1] = columns[0, self._node_1]
+        out[n_tt + n_1 :] = columns[1:].reshape(-1)
+        return out
 
     @property
-    def hessian_function(self) -> ca.Function:
-        return self._hessian_graph[0]
+    def hessian_function(self):
+        """(x, p) -> triu(J^T J) as a sparse DM (`hessian_values` gives its nonzeros without the DM)."""
+        def hessian(x, p):
+            x, p = (np.asarray(ca.DM(v) if not isinstance(v, np.ndarray) else v, dtype=float).ravel() for v in (x, p))
+            return ca.DM(self.hessian_pattern, self.hessian_values(x, p))
+        return hessian
 
     def solve(self, solver, x0: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, dict]:
         """(the solution, IPOPT's stats): IPOPT from x0 with the parameters p, through buffers (no DM of the
@@ -239,7 +259,7 @@ class JointProblem:
 
     def hessian_values(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
         """The nonzeros of triu(J^T J) at (x, p), in the order of `hessian_sparsity`."""
-        return evaluate(self.hessian_function, x, p)[0]
+        return self.assemble_hessian(*evaluate(self._hessian_graph[0], x, p))
 
     def gradient_values(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
         return evaluate(self.gradient_function, x, p)[0]
@@ -332,22 +352,25 @@ class KeptHessian(ca.Callback):
     every interval saved, 1.2-1.5 s at 360k samples). The parameters are those of the running
     `JointProblem.solve`. Evaluated through buffers: no DM is made of x, of the 8.5M parameters or of H."""
 
-    def __init__(self, hessian: ca.Function, n_x: int):
+    def __init__(self, problem, parts: ca.Function):
         ca.Callback.__init__(self)
-        self.hessian, self.n_x = hessian, n_x
+        self.problem, self.parts, self.n_x = problem, parts, problem.n_x
         self.p, self.last = None, None
-        self.buffer = self.run = None
+        self.buffer = self.run = self.outputs = None
         self.construct("kept_gauss_newton_hessian", {})
 
     def start(self, p: np.ndarray) -> None:
         """Before a solve: its parameters, and one evaluation buffer for all its iterations (a new buffer is new
-        work memory, 240 MB at 360k samples, and its first touch cost 0.3 s an iteration)."""
+        work memory, and its first touch cost 0.3 s an iteration at 360k samples)."""
         self.p, self.last = p, None
-        self.buffer, self.run = self.hessian.buffer()
+        self.buffer, self.run = self.parts.buffer()
+        self.outputs = [np.zeros(self.parts.nnz_out(i)) for i in range(self.parts.n_out())]
+        for i, o in enumerate(self.outputs):
+            self.buffer.set_res(i, memoryview(o))
 
     def stop(self) -> None:
         """After a solve: the work memory given back."""
-        self.buffer = self.run = None
+        self.buffer = self.run = self.outputs = None
 
     def get_n_in(self):
         return 2
@@ -359,7 +382,7 @@ class KeptHessian(ca.Callback):
         return ca.Sparsity.dense(self.n_x, 1) if i == 0 else ca.Sparsity.dense(1, 1)
 
     def get_sparsity_out(self, i):
-        return self.hessian.sparsity_out(0)
+        return self.problem.hessian_pattern
 
     def has_eval_buffer(self):
         return True
@@ -367,11 +390,10 @@ class KeptHessian(ca.Callback):
     def eval_buffer(self, arg, res):
         x = np.frombuffer(arg[0], dtype=float).copy()
         lam_f = float(np.frombuffer(arg[1], dtype=float)[0])
-        values = np.zeros(self.hessian.nnz_out(0))
         self.buffer.set_arg(0, memoryview(x))
         self.buffer.set_arg(1, memoryview(self.p))
-        self.buffer.set_res(0, memoryview(values))
         self.run()
+        values = self.problem.assemble_hessian(*self.outputs)
         self.last = (x, values)
         np.multiply(values, lam_f, out=np.frombuffer(res[0], dtype=float))
         return 0
