@@ -103,18 +103,29 @@ def disturbance_from_magnitude(t_mag_s: np.ndarray, e: np.ndarray, G: np.ndarray
     return FieldDisturbance(float(np.sqrt(excess[0] * np.exp(window_s / correlation_s))), correlation_s)
 
 
-def magnitude_and_gradient(problem: JointProblem, theta, g, mag: np.ndarray, step: float = 1e-6):
-    """(|R (y - h)| - 1 per sample, its gradient with respect to the soft- and hard-iron corrections)."""
-    def magnitude(th):
-        S, h = (np.array(v) for v in problem.physical_function(th, g)[:2])
-        return np.linalg.norm(calibrated_field(np.linalg.inv(S), h.ravel(), mag), axis=1)
+def magnitude_and_gradient(problem: JointProblem, theta, g, mag: np.ndarray):
+    """(|R (y - h)| - 1 per sample, its gradient with respect to the soft- and hard-iron corrections).
 
-    G = np.empty((len(mag), len(MAGNITUDE_PARAMETERS)))
+    S = R^-1 and h are linear in the corrections (S = S0 (I + U), h = h0 + field_scale dh), so a unit step of each
+    gives its dS and dh exactly, and with v = R (y - h): d|v| = -(R^T v) . (dS v + dh) / |v|, one product per
+    correction (central differences took 19 passes over the samples: 0.2 s at 360k)."""
+    def physical(th):
+        S, h = (np.array(v) for v in problem.physical_function(th, g)[:2])
+        return S, h.ravel()
+
+    S, h = physical(theta)
+    R = np.linalg.inv(S)
+    v = calibrated_field(R, h, mag)
+    norm = np.linalg.norm(v, axis=1)
+    w = (v @ R) / norm[:, None]                       # (R^T v) / |v| per sample
+    dS, dh = np.empty((9, len(MAGNITUDE_PARAMETERS))), np.empty((3, len(MAGNITUDE_PARAMETERS)))
     for k, a in enumerate(MAGNITUDE_PARAMETERS):
         d = np.zeros_like(theta)
-        d[a] = step
-        G[:, k] = (magnitude(theta + d) - magnitude(theta - d)) / (2 * step)
-    return magnitude(theta) - 1.0, G
+        d[a] = 1.0
+        S_a, h_a = physical(theta + d)
+        dS[:, k], dh[:, k] = (S_a - S).reshape(-1), h_a - h
+    G = -((w[:, :, None] * v[:, None, :]).reshape(-1, 9) @ dS + w @ dh)   # w^T dS v + w^T dh, all at once
+    return norm - 1.0, G
 
 
 # --------------------------------------------------------------------------- its effect on the estimate
