@@ -58,7 +58,7 @@ def information_at_poses(problem, poses, jacobians):
     for jp, lin, p, s in problems_at_poses(problem, poses):
         info = reduce_hessian(jp.hessian_function(np.zeros(jp.n_x), p), jp.n_theta, jp.B).information
         C0, _ = qr_split(lin.K0)
-        J = cached_propagation_jacobian(jp, np.zeros(jp.n_theta), p[: jp.n_glob_p], C0, jacobians)
+        J = cached_propagation_jacobian(jp, np.zeros(jp.n_theta), jp.globals_of(p), C0, jacobians)
         cov = J @ np.linalg.inv(info) @ J.T
         out.append((info, J[:12, 9:21], cov[:12, :12], float(s.t_gyro_s[-1] - s.t_gyro_s[0]), s))
     return out

@@ -180,6 +180,34 @@ def integrate_body_rates(t_s: np.ndarray, omega_rad_s: np.ndarray, C0: np.ndarra
     return quat_to_dcm(cumulative_quat_product(np.concatenate([q0, steps])))
 
 
+SCAN_BLOCK = 256   # samples per block of the attitude's prefix product
+
+
+def integrated_quaternions(t_s: np.ndarray, omega_rad_s: np.ndarray) -> np.ndarray:
+    """The unit quaternions of `integrate_body_rates` (the same steps, from I), composed by a blocked prefix
+    product: log-depth within blocks of SCAN_BLOCK steps, then across the blocks' totals, so a long recording
+    takes 9 passes over its quaternions instead of log2(N) (19 at 360k samples). Only the order in which the
+    unit steps are multiplied differs (rounding, ~1e-16 a step)."""
+    dt = np.diff(t_s)[:, None]
+    wa, wb = omega_rad_s[:-1], omega_rad_s[1:]
+    steps = exp_quat(0.5 * (wa + wb) * dt + (dt**2 / 12.0) * np.cross(wa, wb))
+    n = len(steps) + 1
+    blocks = -(-n // SCAN_BLOCK)
+    Q = np.zeros((blocks * SCAN_BLOCK, 4))
+    Q[:, 0] = 1.0
+    Q[1:n] = steps
+    Q = Q.reshape(blocks, SCAN_BLOCK, 4)
+    shift = 1
+    while shift < SCAN_BLOCK:
+        Q[:, shift:] = quat_multiply(Q[:, :-shift], Q[:, shift:])
+        shift *= 2
+    if blocks > 1:
+        before = cumulative_quat_product(Q[:-1, -1])      # everything before block k + 1
+        Q[1:] = quat_multiply(before[:, None, :], Q[1:])
+    out = Q.reshape(-1, 4)[:n]
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
 def tangent_basis(m: np.ndarray) -> np.ndarray:
     """3x2 orthonormal basis [b1, m x b1] of the plane normal to the unit vector m.
 

@@ -69,13 +69,14 @@ def turning(session: Session, bias_rad_s: np.ndarray | None = None) -> Turning:
     if bias_rad_s is not None:
         w = w - bias_rad_s
     w = np.where(np.append(hole_steps(t), False)[:, None], 0.0, w)   # nothing turns across a hole
-    C = so3.integrate_body_rates(t, w)
-    span = float(np.rad2deg(np.max(np.linalg.norm(so3.log_so3(C), axis=1))))
+    q = so3.integrated_quaternions(t, w)    # unit quaternions: no (N, 3, 3) matrix of every sample
+    span = float(np.rad2deg(np.max(2.0 * np.arctan2(np.linalg.norm(q[:, 1:], axis=1), np.abs(q[:, 0])))))
     dt = np.gradient(t)
     _, axes = np.linalg.eigh((w * dt[:, None]).T @ w)
     turn = np.rad2deg(np.abs(w @ axes).T @ dt)
     main = axes[:, -1] * np.sign(axes[np.argmax(np.abs(axes[:, -1])), -1])
-    tilt = float(np.rad2deg(np.arccos(np.clip(np.min((C @ main) @ main), -1.0, 1.0))))
+    v = q[:, 1:]   # main^T C main = 1 - 2 (|v|^2 - (v . main)^2) for C of the unit quaternion (w, v)
+    tilt = float(np.rad2deg(np.arccos(np.clip(np.min(1.0 - 2.0 * (np.sum(v * v, axis=1) - (v @ main) ** 2)), -1.0, 1.0))))
     return Turning(span, tuple(float(x) for x in turn), main, tilt)
 
 

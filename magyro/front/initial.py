@@ -40,6 +40,12 @@ def linear_gyro_estimate(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s: float
     gate's, when forced); there the estimate is set to an ideal gyro's instead of the noise's.
     """
     dm, int_M = windowed_increments(t_gyro_s, gyro_rad_s, np.asarray(t_mag_s) - time_offset_s, field_m, window_s)
+    return estimate_from_increments(dm, int_M, time_offset_s, unexcited)
+
+
+def estimate_from_increments(dm: np.ndarray, int_M: np.ndarray, time_offset_s: float = 0.0,
+                             unexcited: np.ndarray | None = None) -> LinearGyroEstimate:
+    """`linear_gyro_estimate` from the rows of eq. (13) (`windowed_increments`)."""
     A = int_M.reshape(-1, 12)
     b = dm.reshape(-1)
     # normal equations (12 x 12): a tall lstsq cost 40 ms a call in the lag search
@@ -115,6 +121,11 @@ def turning_residual(t_gyro_s, gyro_rad_s, t_mag_s, field_m, K, eps, time_offset
     """RMS misfit of eq. (13) for given K, eps: how well that gyro calibration predicts the calibrated
     field's turning over the windows (the linear estimate is the K, eps that minimise it)."""
     dm, int_M = windowed_increments(t_gyro_s, gyro_rad_s, np.asarray(t_mag_s) - time_offset_s, field_m, window_s)
+    return residual_of_increments(dm, int_M, K, eps)
+
+
+def residual_of_increments(dm: np.ndarray, int_M: np.ndarray, K, eps) -> float:
+    """`turning_residual` from the rows of eq. (13)."""
     theta = np.concatenate([np.asarray(K, dtype=float).reshape(-1, order="F"), np.asarray(eps, dtype=float)])
     return float(np.sqrt(np.mean((int_M.reshape(-1, 12) @ theta - dm.reshape(-1)) ** 2)))
 
@@ -129,6 +140,7 @@ def turning_misfit_ratio(session, K, eps, R, h, time_offset_s: float = 0.0, wind
     magnetometer's noise (`magyro.result.check`).
     """
     field_m = calibrated_field(np.asarray(R), h, session.mag)
-    args = (session.t_gyro_s, session.gyro_rad_s, session.t_mag_s, field_m)
-    best = linear_gyro_estimate(*args, window_s=window_s, time_offset_s=time_offset_s).residual
-    return turning_residual(*args, K, eps, time_offset_s, window_s) / best if best > 0 else 1.0
+    rows = windowed_increments(session.t_gyro_s, session.gyro_rad_s, np.asarray(session.t_mag_s) - time_offset_s,
+                               field_m, window_s)   # once: the best fit and the calibration's misfit on the same rows
+    best = estimate_from_increments(*rows, time_offset_s).residual
+    return residual_of_increments(*rows, K, eps) / best if best > 0 else 1.0

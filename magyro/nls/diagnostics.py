@@ -180,14 +180,14 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
              method: NLS, total_s: float, cov_theta: np.ndarray, disturbance: FieldDisturbance) -> Calibration:
     """The Calibration of a converged solve: parameters, QR split, std (from `cov_theta`, the covariance of the
     corrections with the field disturbance counted; the white std beside it), fit statistics and warnings."""
-    g = sol.p[: problem.n_glob_p]
+    g = problem.globals_of(sol.p)
     theta = sol.x[: problem.n_theta]
     S, h, K, eps, m_i, tau = (np.array(v) for v in problem.physical_function(theta, g))
     h, eps, m_i, tau = h.ravel(), eps.ravel(), m_i.ravel(), float(tau.item())
     C, Kg = qr_split(K)
     R = np.linalg.inv(S)
     h_samples = hard_iron_at_samples(problem, sol.x, sol.p, prep.session) if problem.walk else h
-    r = residual_matrix(problem, sol.x, sol.p_casadi) if sol.residuals is None else sol.residuals
+    r = residual_matrix(problem, sol.x, sol.p) if sol.residuals is None else sol.residuals
     fit = residual_summary(problem, r, prep.session, R, h_samples)
     # No a-posteriori variance-factor scaling: the noise levels are already calibrated (given, from
     # rests with their correlation, or re-weighted from the residuals' effective scale); the plain

@@ -63,9 +63,9 @@ def hand_sensitivities(problem: JointProblem, x, p, reduced: Reduced, hand_std_m
     mean or the hand is still), from the accelerometer's own Jacobian kernel."""
     B, G = problem.B, problem.n_theta
     W = np.concatenate([np.zeros((1, B, G)), reduced.Dinv_Hpt.reshape(problem.n_int, B, -1)[:-1]])
-    theta, g = ca.DM(x[:G]), ca.DM(p[: problem.n_glob_p])
+    theta, g = ca.DM(x[:G]), ca.DM(problem.globals_of(p))
     states = np.vstack([np.zeros(B), x[G:].reshape(-1, B)])                  # nodes 0..n_int
-    data = p[problem.n_glob_p :].reshape(problem.n_int, problem.n_data)
+    data = problem.data_of(p)
     weight = data[:, data_offset(problem, "w_acc")]
     readout = np.linalg.inv(np.array(problem.accelerometer_function(theta, g)[0]))   # M: the hand reads as M C_i^m a
     maps = {}

@@ -27,9 +27,9 @@ def hard_iron_walk_states(problem: JointProblem, x: np.ndarray) -> np.ndarray:
 def hard_iron_at_samples(problem: JointProblem, x: np.ndarray, p: np.ndarray, session: Session) -> np.ndarray:
     """The hard iron in effect at every magnetometer sample of `session` (n, 3), in its unit: h + field_scale * eta
     of the interval the sample starts a segment of (the last node's for the last sample)."""
-    theta, g = x[: problem.n_theta], p[: problem.n_glob_p]
+    theta, g = x[: problem.n_theta], problem.globals_of(p)
     h = np.array(problem.physical_function(theta, g)[1]).ravel()
-    field_scale = global_number(p, "field_scale")
+    field_scale = global_number(g, "field_scale")
     eta = hard_iron_walk_states(problem, x)
     grid = problem.grid
     per_sample = np.zeros((len(session.t_mag_s), 3))

@@ -74,7 +74,8 @@ def information_covariance(problem: JointProblem, lin: Linearisation, p, session
 def covariance_and_disturbance(problem: JointProblem, lin: Linearisation, p, session=None,
                                jacobians: dict | None = None):
     """(`information_covariance`, the field disturbance measured from `session`, or None without one)."""
-    reduced = reduce_hessian(problem.hessian_function(np.zeros(problem.n_x), p), problem.n_theta, problem.B)
+    reduced = reduce_hessian(problem.hessian_values(np.zeros(problem.n_x), np.asarray(p, dtype=float)), problem.n_theta,
+                             problem.B)
     lam = np.linalg.eigvalsh(reduced.information)
     if lam[0] <= lam[-1] * 1e-14:
         return np.full((N_REPORTED, N_REPORTED), np.inf), None
@@ -85,7 +86,7 @@ def covariance_and_disturbance(problem: JointProblem, lin: Linearisation, p, ses
         cov_theta, disturbance = disturbance_covariance(problem, np.zeros(problem.n_x), p, reduced,
                                                         lin.C_m_i_nominal, session)
     C0, _ = qr_split(lin.K0)
-    return propagate(problem, np.zeros(problem.n_theta), p[: problem.n_glob_p], cov_theta, C0, jacobians), disturbance
+    return propagate(problem, np.zeros(problem.n_theta), problem.globals_of(p), cov_theta, C0, jacobians), disturbance
 
 
 def information_std(problem: JointProblem, lin: Linearisation, p, session=None) -> dict:

@@ -200,7 +200,8 @@ def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool =
                 w_start = wa
             turned, seg_dt = turned + (wb - wa), seg_dt + dt   # padded sub-steps add nothing (wa = wb)
         if acc:   # turning about a point r away: the reading of alpha x r + w x (w x r) at the segment start
-            lever = ca.cross(turned / seg_dt, lever_m) + ca.cross(w_start, ca.cross(w_start, lever_m))
+            alpha = turned / ca.if_else(seg_dt > 0, seg_dt, 1.0)   # no segment (the globals' columns): no 0/0
+            lever = ca.cross(alpha, lever_m) + ca.cross(w_start, ca.cross(w_start, lever_m))
             acc_mean -= parts["cacc"][i] * ca.mtimes(M, lever)
     qE = quat_mul(quat_mul(quat_mul(quat_conj(Q), quat_conj(q_k)), parts["qD"]), quat_exp(phi_k1))
     res.append(ca.mtimes(Winv, 2.0 * qE[0] * qE[1:]) * parts["w_int"])

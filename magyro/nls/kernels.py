@@ -10,10 +10,14 @@ code. Later runs load the shared library in milliseconds. Without a compiler
 (or with MAGYRO_JIT=0) the interpreted kernel is used: same numbers, slower.
 
 The kernels of one shape are compiled side by side (one compiler process each)
-at -O1: on the 2-core machine a 100 s BROAD session's three kernels took 20.5 s
-one after the other at -O2 and 6.2 s side by side at -O1 (the slowest alone),
-and the warm solve is as fast (1.91 s against 1.92 s whole process). On a
-terminal, a line on stderr says that it is compiling and why.
+at -O2, the level measured fastest to evaluate: the three kernels mapped over the
+30,000 intervals of a 360k-sample session took 1.42 s a pass at -O1, 1.22 s at
+-O2 and 1.28 s at -O3 (best of 5 interleaved rounds on the 2-core machine; the
+Gauss-Newton kernel 1.08 / 0.89 / 0.93 s), with outputs equal bit for bit;
+compiling them side by side took 24.5 / 33.2 / 27.3 s under load, paid once
+(at install for the installed shapes). -march=native was faster still (0.98 s)
+but changes the rounding (FMA, 7e-12) and ties a library to the CPU it was built
+on. On a terminal, a line on stderr says that it is compiling and why.
 """
 from __future__ import annotations
 
@@ -27,7 +31,7 @@ from pathlib import Path
 
 import casadi as ca
 
-COMPILE_FLAGS = ["-O1", "-shared", "-fPIC"]
+COMPILE_FLAGS = ["-O2", "-shared", "-fPIC"]
 INSTALLED = Path(__file__).with_name("installed_kernels")   # filled when magyro is installed (setup.py)
 
 

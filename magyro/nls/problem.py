@@ -46,6 +46,7 @@ from magyro.nls.interval import (ACC_GLOBAL_LAYOUT, GLOBAL_LAYOUT, N_ACC_THETA, 
                                  accelerometer_jacobian, data_layout, global_size, kernel_key, kernel_set, node_size,
                                  unpack_accelerometer, unpack_globals)
 
+SAFE_SLOTS = ("ymag", "yacc", "yrest0", "yrest1")   # data whose every use is weighted by a weight of the data
 HOLE_LINK_STD_RAD = 0.1   # across a hole in the gyro record the attitudes are linked this loosely (a gauge only)
 
 
@@ -93,6 +94,17 @@ class JointProblem:
         self.n_glob_p = global_size(acc)
         self.n_data = sum(k for _, k in data_layout(s, L, walk, acc))
         self.n_x = self.n_theta + self.B * self.n_int
+        # The globals ride in leading columns of the data matrix, in slots whose every use is weighted by a weight
+        # that is 0 there (the magnetometer and accelerometer samples), so those columns add nothing but zeros: then
+        # the kernels' map reads the parameters reshaped whole, with no slice of them (a copy of every parameter in
+        # every evaluation and 136 MB of index list and pattern at 360k samples)
+        offsets, o = {}, 0
+        for name, k in data_layout(s, L, walk, acc):
+            offsets[name], o = (o, k), o + k
+        safe = [a + i for name in SAFE_SLOTS if name in offsets for a, k in [offsets[name]] for i in range(k)]
+        self.n_lead = -(-self.n_glob_p // len(safe))
+        self.global_positions = np.array([c * self.n_data + f for c in range(self.n_lead) for f in safe][: self.n_glob_p])
+        self.n_p = self.n_data * (self.n_lead + self.n_int)
         self.n_res_per_interval = 3 * s + 3 + (3 if walk else 0) + (6 if acc else 0)
 
         self.kernel_key = kernel_key(s, L, self.n_theta, walk)
@@ -109,25 +121,43 @@ class JointProblem:
 
     # ------------------------------------------------------------------ MX graph
     def _split(self, x, p):
+        """The kernels' map arguments over the n_lead leading columns (zero states) and the intervals."""
         theta = x[: self.n_theta]
         phi = ca.reshape(x[self.n_theta :], self.B, self.n_int)
-        phi_k = ca.horzcat(ca.MX.zeros(self.B, 1), phi[:, : self.n_int - 1])
-        g = p[: self.n_glob_p]
-        D = ca.reshape(p[self.n_glob_p :], self.n_data, self.n_int)
-        return theta, phi_k, phi, g, D
+        lead = ca.MX.zeros(self.B, self.n_lead)
+        phi_k = ca.horzcat(lead, ca.MX.zeros(self.B, 1), but_last_column(phi))   # a split: a column slice costs 7x more
+        g = p[self.global_positions.tolist()]
+        D = ca.reshape(p, self.n_data, self.n_lead + self.n_int)
+        return theta, phi_k, ca.horzcat(lead, phi), g, D
+
+    def _intervals(self, M):
+        """M without its n_lead leading columns (those of the globals)."""
+        return ca.horzsplit(M, [0, self.n_lead, M.shape[1]])[1]
+
+    @property
+    def n_map(self) -> int:
+        return self.n_lead + self.n_int
+
+    def globals_of(self, p: np.ndarray) -> np.ndarray:
+        """The global parameters (`interval.GLOBAL_LAYOUT`) of a parameter vector."""
+        return np.asarray(p)[self.global_positions]
+
+    def data_of(self, p: np.ndarray) -> np.ndarray:
+        """The intervals' data of a parameter vector, (n_int, n_data)."""
+        return np.asarray(p)[self.n_lead * self.n_data :].reshape(self.n_int, self.n_data)
 
     # The three MX graphs are built on first use: the accuracy prediction and the CRLB need only
     # the Hessian, which saves two thirds of the graph-building time of `magyro observe`.
     @cached_property
     def _symbols(self):
         x = ca.MX.sym("x", self.n_x)
-        p = ca.MX.sym("p", self.n_glob_p + self.n_data * self.n_int)
+        p = ca.MX.sym("p", self.n_p)
         return x, p, self._split(x, p)
 
     @cached_property
     def _residual_graph(self):
         x, p, args = self._symbols
-        r = ca.vec(self.residual_kernel.map(self.n_int)(*args))
+        r = ca.vec(self._intervals(self.residual_kernel.map(self.n_map)(*args)))
         return ca.Function("residuals", [x, p], [r]), 0.5 * ca.sumsqr(r)
 
     @cached_property
@@ -143,8 +173,9 @@ class JointProblem:
     @cached_property
     def _gradient_graph(self):
         x, p, args = self._symbols
-        ssq, g_t, g_l, g_r = self.gradient_kernel.map(self.n_int)(*args)
-        grad_phi = ca.horzcat(g_l[:, 1:], ca.MX.zeros(self.B, 1)) + g_r
+        ssq, g_t, g_l, g_r = self.gradient_kernel.map(self.n_map)(*args)   # the leading columns give zeros
+        g_l, g_r = self._intervals(g_l), self._intervals(g_r)
+        grad_phi = ca.horzcat(but_first_column(g_l), ca.MX.zeros(self.B, 1)) + g_r
         grad = ca.vertcat(ca.sum2(g_t), ca.vec(grad_phi))
         grad_f = ca.Function("nlp_grad_f", [x, p], [0.5 * ca.sum2(ssq), grad], ["x", "p"], ["f", "grad_f_x"])
         return ca.Function("gradient", [x, p], [grad]), grad_f
@@ -161,30 +192,85 @@ class JointProblem:
         n_res n_int J_theta^T is ever held: at 360k samples it and its transpose took 4 x 260 MB of patterns
         and work vectors), and its contributions to its two nodes' columns already in compressed-column
         order, so node n's column values are interval n-1's second-node part plus interval n's first-node
-        part: one sum, no permutation."""
+        part: one sum, no permutation. The graph stops at the map's outputs; that sum and the values' order are
+        numpy's (`assemble_hessian`): done in the graph, the dense intermediates' patterns and work vectors took
+        230 MB more at 360k samples and 0.6 s more to build."""
         x, p, args = self._symbols
         k = self.gn_kernel
         inputs = [ca.MX.sym(k.name_in(i), k.sparsity_in(i)) for i in range(k.n_in())]
         hessian_parts = ca.Function("interval_hessian_parts", inputs, [ca.densify(v) for v in k(*inputs)[1:]])
         theta_shared = [True, False, False, True, False]          # theta and g are the same for every interval
-        H_tt, first, second = hessian_parts.map(self.n_int, theta_shared, [True, False, False], {})(*args)
-        columns = ca.horzcat(first[:, 1:], ca.MX.zeros(first.shape[0], 1)) + second    # node n = 1..n_int
+        parts = ca.Function("gauss_newton_parts", [x, p],
+                            list(hessian_parts.map(self.n_map, theta_shared, [True, False, False], {})(*args)))
         G, B = self.n_theta, self.B
-        node_1 = np.sort(np.concatenate(   # node 1's values: no previous node's rows
+        self._node_1 = np.sort(np.concatenate(   # node 1's values: no previous node's rows
             [np.arange(o, o + G) for o in column_starts(G, B)]
             + [np.arange(o + G + B, o + G + B + c + 1) for c, o in enumerate(column_starts(G, B))]))
-        values = ca.vertcat(H_tt, columns[node_1.tolist(), 0], ca.vec(columns[:, 1:]))
-        H = ca.MX(hessian_sparsity(self.n_int, G, B), values)
+        self._kept = KeptHessian(self, parts)
         lam_f = ca.MX.sym("lam_f")
         lam_g = ca.MX.sym("lam_g", 0)
         hess_lag = ca.Function(
-            "nlp_hess_l", [x, p, lam_f, lam_g], [lam_f * H], ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]
-        )
-        return ca.Function("gauss_newton_hessian", [x, p], [H]), hess_lag
+            "nlp_hess_l", [x, p, lam_f, lam_g], [self._kept(x, lam_f)], ["x", "p", "lam_f", "lam_g"],
+            ["triu_hess_gamma_x_x"])
+        return parts, hess_lag
+
+    @cached_property
+    def hessian_pattern(self) -> ca.Sparsity:
+        return hessian_sparsity(self.n_int, self.n_theta, self.B)
+
+    def assemble_hessian(self, H_tt: np.ndarray, first: np.ndarray, second: np.ndarray, out: np.ndarray | None = None):
+        """The nonzeros of triu(J^T J) (in `out` when given) from the Gauss-Newton map's outputs' nonzeros: node n's
+        columns are interval n-1's second-node part plus interval n's first-node part (the intervals after the
+        leading columns of the globals), node 1 without a previous node's rows."""
+        size = first.size // self.n_map
+        F = first.reshape(self.n_map, size)[self.n_lead :]
+        columns = second.reshape(self.n_map, size)[self.n_lead :].copy()
+        columns[:-1] += F[1:]
+        n_tt, n_1 = len(H_tt), len(self._node_1)
+        out = np.empty(n_tt + n_1 + columns[1:].size) if out is None else out
+        out[:n_tt] = H_tt
+        out[n_tt : n_tt + n_1] = columns[0, self._node_1]
+        out[n_tt + n_1 :] = columns[1:].reshape(-1)
+        return out
 
     @property
-    def hessian_function(self) -> ca.Function:
-        return self._hessian_graph[0]
+    def hessian_function(self):
+        """(x, p) -> triu(J^T J) as a sparse DM (`hessian_values` gives its nonzeros without the DM)."""
+        def hessian(x, p):
+            x, p = (np.asarray(ca.DM(v) if not isinstance(v, np.ndarray) else v, dtype=float).ravel() for v in (x, p))
+            return ca.DM(self.hessian_pattern, self.hessian_values(x, p))
+        return hessian
+
+    def solve(self, solver, x0: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, dict]:
+        """(the solution, IPOPT's stats): IPOPT from x0 with the parameters p, through buffers (no DM of the
+        parameters); the last Gauss-Newton Hessian IPOPT evaluated is kept (`last_hessian`)."""
+        self._hessian_graph
+        self._kept.start(p)
+        buffer, run = solver.buffer()
+        free = np.full(self.n_x, np.inf)
+        held = {"x0": np.array(x0, dtype=float), "p": p, "lbx": -free, "ubx": free}
+        for name, value in held.items():
+            buffer.set_arg(solver.index_in(name), memoryview(value))
+        x = np.zeros(self.n_x)
+        buffer.set_res(solver.index_out("x"), memoryview(x))
+        try:
+            run()
+        finally:
+            self._kept.stop()
+        return x, dict(buffer.stats())
+
+    def last_hessian(self, p: np.ndarray):
+        """(x, the nonzeros of triu(J^T J) at x) of the last iteration of the last `solve` with these parameters p,
+        or None."""
+        kept = getattr(self, "_kept", None)
+        return kept.last if kept is not None and kept.p is p else None
+
+    def hessian_values(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """The nonzeros of triu(J^T J) at (x, p), in the order of `hessian_sparsity`."""
+        return self.assemble_hessian(*evaluate(self._hessian_graph[0], x, p))
+
+    def gradient_values(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+        return evaluate(self.gradient_function, x, p)[0]
 
     # ---------------------------------------------------------------- numbers in
     def parameters(self, lin: Linearisation, y_mag, sigma_mag: float, sigma_gyro_density: float,
@@ -228,7 +314,9 @@ class JointProblem:
         if self.accelerometer:
             cols.update(start.columns(acc_weight))
         data = np.concatenate([cols[k] for k, _ in data_layout(s, L, self.walk, self.accelerometer)], axis=1)
-        return np.concatenate([gvec, data.reshape(-1)])
+        lead = np.zeros(self.n_lead * self.n_data)
+        lead[self.global_positions] = gvec
+        return np.concatenate([lead, data.reshape(-1)])
 
     # ----------------------------------------------------------------- the solve
     def solver(self, ipopt_options: dict | None = None):
@@ -264,6 +352,86 @@ class JointProblem:
             x, p, _ = self._symbols
             self._solver = ca.nlpsol("joint", "ipopt", {"x": x, "p": p, "f": self._residual_graph[1]}, opts)
         return self._solver
+
+
+class KeptHessian(ca.Callback):
+    """IPOPT's hess_lag, lam_f J^T J, keeping the last J^T J it evaluated (its nonzeros): at convergence the std is
+    taken from it (the Gauss-Newton Hessian of the last iterate: one evaluation of the Gauss-Newton kernel over
+    every interval saved, 1.2-1.5 s at 360k samples). The parameters are those of the running
+    `JointProblem.solve`. Evaluated through buffers: no DM is made of x, of the 8.5M parameters or of H."""
+
+    def __init__(self, problem, parts: ca.Function):
+        ca.Callback.__init__(self)
+        self.problem, self.parts, self.n_x = problem, parts, problem.n_x
+        self.p, self.last = None, None
+        self.buffer = self.run = self.outputs = None
+        self.construct("kept_gauss_newton_hessian", {})
+
+    def start(self, p: np.ndarray) -> None:
+        """Before a solve: its parameters, and one evaluation buffer for all its iterations (a new buffer is new
+        work memory, and its first touch cost 0.3 s an iteration at 360k samples)."""
+        self.p, self.last = p, None
+        self.buffer, self.run = self.parts.buffer()
+        self.outputs = [np.zeros(self.parts.nnz_out(i)) for i in range(self.parts.n_out())]
+        for i, o in enumerate(self.outputs):
+            self.buffer.set_res(i, memoryview(o))
+
+    def stop(self) -> None:
+        """After a solve: the work memory given back."""
+        self.buffer = self.run = self.outputs = None
+
+    def get_n_in(self):
+        return 2
+
+    def get_n_out(self):
+        return 1
+
+    def get_sparsity_in(self, i):
+        return ca.Sparsity.dense(self.n_x, 1) if i == 0 else ca.Sparsity.dense(1, 1)
+
+    def get_sparsity_out(self, i):
+        return self.problem.hessian_pattern
+
+    def has_eval_buffer(self):
+        return True
+
+    def eval_buffer(self, arg, res):
+        x = np.frombuffer(arg[0], dtype=float).copy()
+        lam_f = float(np.frombuffer(arg[1], dtype=float)[0])
+        self.buffer.set_arg(0, memoryview(x))
+        self.buffer.set_arg(1, memoryview(self.p))
+        self.run()
+        values = self.problem.assemble_hessian(*self.outputs)
+        self.last = (x, values)
+        np.multiply(values, lam_f, out=np.frombuffer(res[0], dtype=float))
+        return 0
+
+
+def evaluate(fn: ca.Function, *args) -> list[np.ndarray]:
+    """fn at numpy arguments (each its nonzeros, in order), its outputs' nonzeros as numpy arrays: through CasADi's
+    buffers, so no DM is made of an argument (a DM of the 8.5M parameters at 360k samples costs 0.6-1 s and 68 MB)
+    or of an output."""
+    buffer, run = fn.buffer()
+    held = [np.ascontiguousarray(a, dtype=float).reshape(-1) for a in args]
+    for i, a in enumerate(held):
+        assert a.size == fn.nnz_in(i), (fn.name(), i, a.size, fn.nnz_in(i))
+        buffer.set_arg(i, memoryview(a))
+    out = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
+    for i, o in enumerate(out):
+        buffer.set_res(i, memoryview(o))
+    run()
+    return out
+
+
+def but_first_column(M):
+    """M without its first column, by a split (no index list)."""
+    return ca.horzsplit(M, [0, 1, M.shape[1]])[1] if M.shape[1] > 1 else ca.MX(M.shape[0], 0)
+
+
+def but_last_column(M):
+    """M without its last column, by a split (no index list)."""
+    n = M.shape[1]
+    return ca.horzsplit(M, [0, n - 1, n])[0] if n > 1 else ca.MX(M.shape[0], 0)
 
 
 def column_starts(G: int, B: int) -> list[int]:

@@ -54,8 +54,8 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     step(f"solving the least squares ({problem.n_x} unknowns, IPOPT)")
     sol = solve_passes(problem, prep, lin, method, level_estimator(problem, prep, lin))
     step("the uncertainty: information and the room's field")
-    reduced = reduce_hessian(problem.hessian_function(sol.x, sol.p_casadi), problem.n_theta, problem.B)
-    decrement = gauss_newton_decrement(reduced, np.array(problem.gradient_function(sol.x, sol.p_casadi)).ravel())
+    reduced = reduce_hessian(solved_hessian(problem, sol), problem.n_theta, problem.B)
+    decrement = gauss_newton_decrement(reduced, problem.gradient_values(sol.x, sol.p))
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT) and not prep.analysis.full_rank:
         raise ObservabilityError(   # forced past the gate, and the data indeed do not pin a solution down
             f"--force cannot help the least squares here: the motion excites only {prep.analysis.rank} of the 12 gyro "
@@ -80,14 +80,23 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     return cal
 
 
+def solved_hessian(problem: JointProblem, sol):
+    """triu(J^T J) for the std: the one IPOPT evaluated at its last iteration, else (no iteration in the last pass)
+    evaluated at the solution. At convergence the two points differ by a step too small to matter: the
+    estimates are those of the solution either way, and the std moved by < 1e-6 of itself where compared
+    (benchmarks/same_estimates.py on BROAD 02, paper-table1 and the bench_limit sessions)."""
+    kept = problem.last_hessian(sol.p)
+    return kept[1] if kept is not None else problem.hessian_values(sol.x, sol.p)
+
+
 def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.ndarray:
     """What the hand's correlated acceleration adds to the corrections' covariance (`magyro.nls.hand_motion`), its
     size and autocorrelation measured at the solution (`magyro.nls.accelerometer.hand_motion`)."""
-    theta, g = sol.x[: problem.n_theta], sol.p[: problem.n_glob_p]
+    theta, g = sol.x[: problem.n_theta], problem.globals_of(sol.p)
     A, b, _, _, lever = (np.array(v) for v in problem.accelerometer_function(theta, g))
     K, eps = (np.array(v) for v in problem.physical_function(theta, g)[2:4])
     start = lin.accelerometer
-    r = residual_matrix(problem, sol.x, sol.p_casadi) if sol.residuals is None else sol.residuals
+    r = residual_matrix(problem, sol.x, sol.p) if sol.residuals is None else sol.residuals
     excess = specific_force_excess(start, A, b.ravel(), K, eps.ravel(), lever.ravel())
     hand = hand_motion(excess, sol.acc_weight, start, solved_accelerometer_residuals(problem, r, sol.acc_weight))
     weights_hand = np.sqrt(np.maximum(1.0 / np.maximum(sol.acc_weight, 1e-300) ** 2 - white_variance(start), 0.0))

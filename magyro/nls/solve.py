@@ -12,7 +12,6 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 
 from magyro import so3
@@ -25,7 +24,7 @@ from magyro.options import Options
 from magyro.observability.gate import unexcited_directions
 from magyro.nls.accelerometer import accelerometer_start, hand_weights
 from magyro.nls.interval import N_GLOBAL, TIME_OFFSET_SCALE_S
-from magyro.nls.problem import JointProblem, Linearisation
+from magyro.nls.problem import JointProblem, Linearisation, evaluate
 from magyro.errors import InputError, ObservabilityError
 from magyro.result.reported import mirror_is_credible, qr_split
 from magyro.session import HOLE_FACTOR, Session, hole_steps, runs_of_true
@@ -52,16 +51,18 @@ def nominal_attitudes(session: Session, K0, eps0, t_node_s) -> tuple[np.ndarray,
     """
     t, y = session.t_gyro_s, session.gyro_rad_s
     w = y @ K0.T + eps0
-    C = np.empty((len(t), 3, 3))
+    q = np.empty((len(t), 4))   # quaternions, turned into matrices at the nodes only (a twelfth of the samples)
     stretch = np.empty(len(t), dtype=int)
     for k, (a, b) in enumerate(stretch_bounds(t)):
-        C[a:b] = so3.integrate_body_rates(t[a:b], w[a:b])
+        q[a:b] = so3.integrated_quaternions(t[a:b], w[a:b])
         stretch[a:b] = k
     i = np.clip(np.searchsorted(t, t_node_s, side="right") - 1, 0, len(t) - 1)
     ahead = t_node_s - t[i]
     in_hole = ahead > HOLE_FACTOR * np.median(np.diff(t))
     ahead = np.where(in_hole, 0.0, ahead)   # no extrapolation into a hole
-    return C[i] @ so3.exp_so3(w[i] * ahead[:, None]), stretch[i], in_hole
+    return so3.quat_to_dcm(q[i]) @ so3.exp_so3(w[i] * ahead[:, None]), stretch[i], in_hole
+
+
 
 
 def aligned_stretches(C_nodes: np.ndarray, stretch: np.ndarray, in_hole: np.ndarray, field_m_nodes: np.ndarray,
@@ -186,7 +187,7 @@ def magnetometer_noise_factor(problem: JointProblem, residuals: np.ndarray) -> f
 def residual_matrix(problem: JointProblem, x, p) -> np.ndarray:
     """Whitened residuals, one row per interval: the magnetometer samples, then the gyro mismatch (then the hard
     iron's walk step, when it moves)."""
-    return np.array(problem.residual_function(x, p)).reshape(problem.n_int, problem.n_res_per_interval)
+    return evaluate(problem.residual_function, x, p)[0].reshape(problem.n_int, problem.n_res_per_interval)
 
 
 def magnetometer_residuals(r: np.ndarray, stride: int) -> np.ndarray:
@@ -233,7 +234,6 @@ class Solution:
     stats: dict
     passes: int
     seconds: float
-    p_casadi: ca.DM                        # p as a DM, for the problem's Functions: converted once (0.9 s at 360k samples)
     residuals: np.ndarray | None = None    # residual_matrix at (x, p), when the last pass computed it
     gyro_density: float | None = None      # the gyro level p was weighted with (prep's unless estimated)
     variance: object = None                # the last `variance.VarianceComponents` step, when the levels were estimated
@@ -262,15 +262,13 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
     seconds, iterations, step = 0.0, 0, None
     for n_pass in range(1, max_passes + 1):
         p = problem_parameters(problem, prep, lin, sigma_mag, tau0, density, acc_weight)
-        p_dm = ca.DM(p)   # one numpy -> DM conversion for the solver and the residuals (8.5M numbers at 360k samples)
         t0 = time.perf_counter()
-        x = np.array(solver(x0=x, p=p_dm)["x"]).ravel()
+        x, stats = problem.solve(solver, x, p)   # through buffers: no DM of p (0.6-1 s and 68 MB at 360k samples)
         seconds += time.perf_counter() - t0
-        stats = dict(solver.stats())
         iterations += int(stats["iter_count"])
         stats["iter_count"] = iterations
-        tau = float(problem.physical_function(x[: problem.n_theta], p[: problem.n_glob_p])[5].full().item())
-        r = residual_matrix(problem, x, p_dm) if (method.reweight_noise or estimating or problem.accelerometer) else None
+        tau = float(problem.physical_function(x[: problem.n_theta], problem.globals_of(p))[5].full().item())
+        r = residual_matrix(problem, x, p) if (method.reweight_noise or estimating or problem.accelerometer) else None
         if estimating:
             step = variance_step(x, r, sigma_mag, density, tau0)
             gyro_factor, mag_factor = step.gyro_factor, step.mag_factor
@@ -282,7 +280,7 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
         new_acc, acc_moved = (accelerometer_reweighted(problem, lin, r, acc_weight) if problem.accelerometer
                               else (None, False))
         if n_pass == max_passes or not (moved or reweight or acc_moved):
-            return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, p_dm, r, density, step, not reweight,
+            return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, r, density, step, not reweight,
                             acc_weight)
         if acc_moved:
             acc_weight = new_acc

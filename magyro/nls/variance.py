@@ -65,7 +65,7 @@ def inverse_on_pattern(red: Reduced, H_triu: ca.DM) -> np.ndarray:
     inv[tp] = -(Si @ W.T)[rows[tp], cols[tp] - G]
     pp = rows >= G
     r, c = rows[pp] - G, cols[pp] - G
-    diag, upper = block_tridiagonal_inverse_band(*tridiagonal_blocks(red.D, b))
+    diag, upper = block_tridiagonal_inverse_band(red.diagonal, red.upper)
     same = r // b == c // b
     d_inv = np.where(same, diag[r // b, r % b, c % b], upper[np.minimum(r // b, len(upper) - 1), r % b, c % b])
     inv[pp] = d_inv + np.einsum("ia,ab,ib->i", W[r], Si, W[c])

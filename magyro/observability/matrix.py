@@ -46,12 +46,25 @@ def field_on_gyro_times(t_gyro_s: np.ndarray, t_mag_s: np.ndarray, field_m: np.n
     return inside, interpolate_rows(t_gyro_s[inside], t_mag_s, field_m)
 
 
+PIECE = 65536   # samples per piece of the sums over the session: their temporaries are a piece's, not the session's
+
+
 def information_integral(t_gyro_s, gyro_rad_s, t_mag_s, field_m) -> np.ndarray:
-    """The 12 x 12 integral of M^T M over the session (paper eq. 11)."""
+    """The 12 x 12 integral of M^T M over the session (paper eq. 11).
+
+    M = [u_1 (m x), u_2 (m x), u_3 (m x), u_4 (m x)] with u = (y, 1), so M^T M = (u u^T) kron ((m x)^T (m x)) and
+    (m x)^T (m x) = |m|^2 I - m m^T: the integral is one (16 x 9) matrix product of the weighted u_j u_l against
+    those 9 numbers per sample, in pieces (no (N, 3, 12) M)."""
     inside, f = field_on_gyro_times(t_gyro_s, t_mag_s, field_m)
-    M = m_matrices(gyro_rad_s[inside], f)
+    y = gyro_rad_s[inside]
     w = trapezoid_weights(t_gyro_s[inside])
-    return np.einsum("k,kia,kib->ab", w, M, M)
+    T = np.zeros((16, 9))
+    for a in range(0, len(w), PIECE):
+        fk, yk, wk = f[a : a + PIECE], y[a : a + PIECE], w[a : a + PIECE]
+        u = np.column_stack([yk, np.ones(len(yk))])
+        P = (np.sum(fk * fk, axis=1)[:, None, None] * np.eye(3) - fk[:, :, None] * fk[:, None, :]).reshape(-1, 9)
+        T += ((wk[:, None] * u)[:, :, None] * u[:, None, :]).reshape(-1, 16).T @ P
+    return T.reshape(4, 4, 3, 3).transpose(0, 2, 1, 3).reshape(12, 12)
 
 
 def cumulative_information(t_gyro_s, gyro_rad_s, t_mag_s, field_m, t_checkpoints_s) -> np.ndarray:
@@ -72,16 +85,25 @@ def windowed_increments(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s: float)
     Windows run between magnetometer samples about `window_s` apart; a window
     that overlaps a hole in either record is left out (nothing is known of the
     motion there). Returns (dm (W, 3), int_M (W, 3, 12)).
+
+    M's blocks are y_j (m x) = (y_j m) x, so only the 12 numbers y_j m and m are integrated per sample and
+    turned into skew blocks per window: the same sums, sign for sign, as integrating M itself (a third of the
+    work, and 96 bytes a sample instead of ~1.4 KB of temporaries at 360k samples).
     """
     inside, f = field_on_gyro_times(t_gyro_s, t_mag_s, field_m)
     t = t_gyro_s[inside]
-    M = m_matrices(gyro_rad_s[inside], f)
-    cum = np.concatenate([np.zeros((1, 3, 12)), np.cumsum(0.5 * (M[1:] + M[:-1]) * np.diff(t)[:, None, None], axis=0)])
+    y = gyro_rad_s[inside]
+    q = np.concatenate([y[:, j, None] * f for j in range(3)] + [f], axis=1)    # (n, 12): y_1 m, y_2 m, y_3 m, m
+    q = 0.5 * (q[1:] + q[:-1])
+    q *= np.diff(t)[:, None]
+    cum = np.concatenate([np.zeros((1, 12)), np.cumsum(q, axis=0)])
+    del q
     step = max(1, int(round(window_s * (len(t_mag_s) - 1) / (t_mag_s[-1] - t_mag_s[0]))))
     ends = np.arange(0, len(t_mag_s), step)
     ends = ends[(t_mag_s[ends] >= t[0]) & (t_mag_s[ends] <= t[-1])]
-    cum_at = np.stack([np.stack([np.interp(t_mag_s[ends], t, cum[:, i, j]) for j in range(12)], -1) for i in range(3)], 1)
+    cum_at = np.column_stack([np.interp(t_mag_s[ends], t, cum[:, i]) for i in range(12)])
     dm = np.diff(field_m[ends], axis=0)
     t_end = t_mag_s[ends]
     whole = ~overlaps_a_hole(t_end[:-1], t_end[1:], hole_spans_s(t) + hole_spans_s(t_mag_s))
-    return dm[whole], np.diff(cum_at, axis=0)[whole]
+    inc = np.diff(cum_at, axis=0)[whole]
+    return dm[whole], np.concatenate([skew(inc[:, 3 * j : 3 * j + 3]) for j in range(4)], axis=2)
