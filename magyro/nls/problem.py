@@ -66,8 +66,6 @@ class Linearisation:
     accelerometer: object = None   # `magyro.nls.accelerometer.AccelerometerStart` when the accelerometer joins
 
 
-
-
 # -------------------------------------------------------------------- the problem
 
 class JointProblem:
