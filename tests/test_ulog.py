@@ -1,9 +1,9 @@
 """Tests for `magyro.io.ulog` and `magyro import ulog`, on real PX4 logs.
 
 `data/px4-sample-appended-multiple.ulg` (shipped, BSD 3-Clause, data/PROVENANCE.md) has the older
-layout: gyro and magnetometer both in `sensor_combined`. `sample_log_small.ulg` in
+layout: gyro, magnetometer and accelerometer all in `sensor_combined`; the board lies still. `sample_log_small.ulg` in
 ../shared/data/ulog (newer layout: sensor_gyro/sensor_mag at 1 Hz, sensor_combined,
-vehicle_magnetometer) is used when present. The expected values are read here with pyulog
+vehicle_magnetometer; sensor_accel at 1 Hz too; the board still on the ground) is used when present. The expected values are read here with pyulog
 directly, independently of the importer.
 """
 from __future__ import annotations
@@ -18,14 +18,16 @@ pytest.importorskip("pyulog")
 from pyulog import ULog  # noqa: E402
 
 from magyro.errors import InputError  # noqa: E402
+from magyro.front.rests import find_rests  # noqa: E402
 from magyro.io import MIN_SAMPLES, convert_ulog, import_ulog, load_session  # noqa: E402
-from magyro.io.ulog import _stream, parse_topics  # noqa: E402
+from magyro.io.ulog import _choose_optional, _stream, parse_topics  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = REPO / "data" / "px4-sample-appended-multiple.ulg"
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "ulog"
 SMALL = SHARED / "sample_log_small.ulg"
 
+STANDARD_GRAVITY = 9.80665
 needs_small = pytest.mark.skipif(not SMALL.is_file(), reason=f"sample_log_small.ulg not found in {SHARED}")
 
 
@@ -43,6 +45,22 @@ def expected_old_layout(path: Path):
     mag_ts = ts + d["magnetometer_timestamp_relative"].astype(np.int64)
     mag = np.column_stack([d[f"magnetometer_ga[{k}]"] for k in range(3)]).astype(np.float64)
     return (ts, gyro) + fresh(mag_ts, mag)
+
+
+def expected_acc_combined(path: Path):
+    """(stamps in us, accelerometer in m/s^2) of sensor_combined read with pyulog: stamped timestamp +
+    accelerometer_timestamp_relative (0 in both logs: the gyro's sample)."""
+    d = ULog(str(path), ["sensor_combined"]).get_dataset("sensor_combined").data
+    ts = d["timestamp"].astype(np.int64) + d["accelerometer_timestamp_relative"].astype(np.int64)
+    return ts, np.column_stack([d[f"accelerometer_m_s2[{k}]"] for k in range(3)]).astype(np.float64)
+
+
+def norm_at_rests(s) -> float:
+    """|mean accelerometer| over the rests `find_rests` finds (at least one second of them)."""
+    rests = find_rests(s)
+    assert rests.seconds >= 1.0
+    at = np.any([(s.t_acc_s >= a) & (s.t_acc_s <= b) for a, b in rests.segments_s], axis=0)
+    return float(np.linalg.norm(s.acc_m_s2[at].mean(axis=0)))
 
 
 def assert_session_is(s, ts_g, gyro, ts_m, mag):
@@ -68,6 +86,23 @@ def test_old_layout_equals_pyulog_to_the_last_bit(shipped):
     assert shipped.metadata["ulog_mag_time_field"] == "timestamp + magnetometer_timestamp_relative"
 
 
+def test_old_layout_accelerometer_in_m_s2_on_the_gyro_stamps(shipped):
+    ts_a, acc = expected_acc_combined(SHIPPED)
+    origin = int(shipped.metadata["ulog_time_origin_us"].split()[0])
+    np.testing.assert_array_equal(shipped.t_acc_s, (ts_a - origin) / 1e6)
+    np.testing.assert_array_equal(shipped.t_acc_s, shipped.t_gyro_s)  # sampled with the gyro, in one message
+    np.testing.assert_array_equal(shipped.acc_m_s2, acc)
+    # at its rest (the first 1.6 s; the board is nudged after) |a| is gravity in m/s^2, not g: 9.94, PX4's own
+    # calibration leaves it 1.4 % high
+    assert abs(norm_at_rests(shipped) / STANDARD_GRAVITY - 1) < 0.02
+    m = shipped.metadata
+    assert m["acc_unit"] == "m/s^2" and m["ulog_acc_topic"] == "sensor_combined"
+    assert m["ulog_acc_fields"] == "accelerometer_m_s2[0] accelerometer_m_s2[1] accelerometer_m_s2[2]"
+    assert m["ulog_acc_time_field"] == "timestamp + accelerometer_timestamp_relative"
+    assert m["ulog_acc_clipping"] == "not logged (sensor_combined has no accelerometer_clipping)"
+    assert "accelerometer sensor_combined" in m["imported_from"]
+
+
 def test_metadata_carries_the_provenance(shipped):
     m = shipped.metadata
     assert m["source"] == str(SHIPPED) and m["ulog_file"] == SHIPPED.name
@@ -87,12 +122,12 @@ def test_written_session_loads_back_the_same(shipped, tmp_path):
     written = convert_ulog(SHIPPED, out)
     assert SHIPPED.read_bytes() == before
     back = load_session(out)
-    for name in ("t_gyro_s", "gyro_rad_s", "t_mag_s", "mag"):
+    for name in ("t_gyro_s", "gyro_rad_s", "t_mag_s", "mag", "t_acc_s", "acc_m_s2"):
         np.testing.assert_array_equal(getattr(back, name), getattr(shipped, name))
         np.testing.assert_array_equal(getattr(written, name), getattr(shipped, name))
     assert back.mag_unit == "G"
     for key in ("ulog_file", "ulog_gyro_topic", "ulog_mag_topic", "ulog_instance", "px4_calibration",
-                "ulog_time_origin_us"):
+                "ulog_time_origin_us", "acc_unit", "ulog_acc_topic"):
         assert back.metadata[key] == shipped.metadata[key]
 
 
@@ -112,6 +147,47 @@ def test_new_layout_falls_back_from_1_hz_raw_topics_and_equals_pyulog():
     assert "sensor_gyro instance 0 has only 6 fresh gyro samples" in m["ulog_topic_choice"]
     forced = import_ulog(SMALL, topics="sensor_combined,vehicle_magnetometer")
     np.testing.assert_array_equal(forced.mag, s.mag)
+
+
+@needs_small
+def test_new_layout_accelerometer_falls_back_from_1_hz_sensor_accel_to_sensor_combined():
+    s = import_ulog(SMALL)
+    ts_a, acc = expected_acc_combined(SMALL)
+    origin = int(s.metadata["ulog_time_origin_us"].split()[0])
+    np.testing.assert_array_equal(s.t_acc_s, (ts_a - origin) / 1e6)
+    np.testing.assert_array_equal(s.acc_m_s2, acc)
+    np.testing.assert_array_equal(s.t_acc_s, s.t_gyro_s)
+    m = s.metadata
+    assert m["ulog_acc_topic"] == "sensor_combined" and m["acc_unit"] == "m/s^2"
+    assert "sensor_accel instance 0 has only 6 fresh accelerometer samples" in m["ulog_topic_choice"]
+    assert m["ulog_acc_clipping"] == "0 of 1298 samples flagged clipped by PX4 (accelerometer_clipping)"
+    # still on the ground all 6.5 s: gravity in m/s^2 (sensor_combined reads 9.62, 1.9 % low; the raw sensor_accel
+    # instances 0.4-1.2 % low)
+    assert find_rests(s).segments_s == [(s.t_gyro_s[0], s.t_gyro_s[-1])]
+    assert abs(norm_at_rests(s) / STANDARD_GRAVITY - 1) < 0.025
+    assert "CAL_ACC0_XOFF" in json.loads(m["px4_calibration_parameters"])
+
+
+@needs_small
+def test_sensor_accel_uses_its_own_sample_stamps_and_clip_counters():
+    data = ULog(str(SMALL), ["sensor_accel"]).get_dataset("sensor_accel", 2).data
+    stream = _stream(data, "sensor_accel", "acc")
+    assert stream["time_field"] == "timestamp_sample" and stream["fields"] == ("x", "y", "z")
+    np.testing.assert_array_equal(stream["stamps_us"], data["timestamp_sample"].astype(np.int64))
+    np.testing.assert_array_equal(stream["values"], np.column_stack([data[k] for k in "xyz"]).astype(np.float64))
+    assert abs(np.median(np.linalg.norm(stream["values"], axis=1)) / STANDARD_GRAVITY - 1) < 0.02
+    assert stream["clipping"] == "0 of 6 samples flagged clipped by PX4 (clip_counter[0..2])"
+    data = dict(data)
+    data["clip_counter[1]"] = np.array([0, 2, 0, 0, 1, 0], dtype=np.uint8)
+    assert _stream(data, "sensor_accel", "acc")["clipping"].startswith("2 of 6 samples flagged clipped")
+
+
+def test_a_log_without_an_accelerometer_imports_without_one():
+    gyro_only = {("sensor_combined", 0): {"timestamp": np.arange(200, dtype=np.uint64),
+                                          "gyro_rad[0]": np.zeros(200, np.float32)}}
+    stream, why = _choose_optional(SHIPPED, gyro_only, "acc", ("sensor_accel", "sensor_combined"), 0)
+    assert stream is None and why == ["no accelerometer imported (no accelerometer topic; the log has none of "
+                                      "sensor_accel, sensor_combined with accelerometer fields)"]
 
 
 @needs_small
@@ -188,6 +264,7 @@ def test_cli_import_ulog(run_magyro, assert_plain_failure, tmp_path):
     done = run_magyro("import", "ulog", SHIPPED, "-o", out)
     assert done.returncode == 0, done.stderr
     assert "2373 gyro samples" in done.stdout and "444 magnetometer samples" in done.stdout
+    assert "2373 accelerometer samples (m/s^2) from sensor_combined" in done.stdout
     assert "sensor_combined" in done.stdout and out.is_file()
     fake = tmp_path / "fake.ulg"
     fake.write_text("not a log\n")

@@ -78,7 +78,7 @@ def import_ulog_command(
     instance: int = typer.Option(0, "--instance", min=0, help="Topic instance (multi_id), e.g. 1 for the second gyro and magnetometer."),
     topics: Optional[str] = typer.Option(None, "--topics", help="GYRO,MAG topics, e.g. sensor_combined,vehicle_magnetometer (default: sensor_gyro,sensor_mag when logged fast enough, else sensor_combined with vehicle_magnetometer)."),
 ):
-    """A PX4 flight log: gyro (rad/s) and magnetometer (gauss), fresh samples only, times from the first sample."""
+    """A PX4 flight log: gyro (rad/s), magnetometer (gauss) and accelerometer (m/s^2, when logged), fresh samples only, times from the first sample."""
     from magyro.io.ulog import convert_ulog, parse_topics
 
     def action():
@@ -86,7 +86,9 @@ def import_ulog_command(
         m = s.metadata
         typer.echo(f"session written to {output}: {len(s.t_gyro_s)} gyro samples ({s.gyro_rate_hz:.1f} Hz) from "
                    f"{m['ulog_gyro_topic']} instance {m['ulog_instance']}, {len(s.t_mag_s)} magnetometer samples "
-                   f"({s.mag_rate_hz:.1f} Hz, gauss) from {m['ulog_mag_topic']}, {s.duration_s:.1f} s")
+                   f"({s.mag_rate_hz:.1f} Hz, gauss) from {m['ulog_mag_topic']}"
+                   + (f", {len(s.t_acc_s)} accelerometer samples (m/s^2) from {m['ulog_acc_topic']}"
+                      if s.t_acc_s is not None else ", no accelerometer") + f", {s.duration_s:.1f} s")
         typer.echo("PX4 logs are usually already calibrated by the autopilot; the metadata says which fields were used")
 
     run_guarded(action)
