@@ -53,7 +53,7 @@ def calibrate_with_history(session: Session, options: Options | None = None, met
 
     options = options or Options()
     method = method or method_named("nls")
-    check_method_options(method, options)
+    check_method_options(method, options, session)
     step("checking the recording")
     session, recording = checked_recording(session, options)
     plain = replace(options, split_check=False)

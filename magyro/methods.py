@@ -15,7 +15,7 @@ def run_method(method, session, options=None):
     """Calibrate `session` with `method`: an object with its own `calibrate(session, options)` (EKF) runs it; the
     least squares' knobs (NLS) run `magyro.nls.run.calibrate_nls` (returns a `magyro.Calibration`)."""
     own = getattr(method, "calibrate", None)
-    check_method_options(method, options)
+    check_method_options(method, options, session)
     if own is not None:
         return own(session, options)
     if isinstance(method, NLS):
@@ -25,11 +25,21 @@ def run_method(method, session, options=None):
     raise InputError(f"{method!r} is not a calibration method; use magyro.NLS(...) or magyro.EKF(...)")
 
 
-def check_method_options(method, options) -> None:
-    """InputError (exit 2) for options the method cannot honour: the accelerometer is the least squares' only."""
-    if options is not None and options.accelerometer and not isinstance(method, NLS):
+def check_method_options(method, options, session=None) -> None:
+    """InputError (exit 2) for options the method cannot honour: the accelerometer is the least squares' only, and
+    needs the session's accelerometer (said before any work: a recording refused for its motion would otherwise
+    hide that the accelerometer is missing until the motion is fixed)."""
+    if options is None or not options.accelerometer:
+        return
+    if not isinstance(method, NLS):
         raise InputError("the accelerometer is calibrated by the least squares only (--method nls); the paper's "
                          "EKF calibrates the gyro and the magnetometer")
+    if session is not None and (session.acc_m_s2 is None or len(session.acc_m_s2) < 2):
+        note = (session.metadata or {}).get("sensor_note", "")
+        why = note[note.find("no accelerometer: ") + len("no accelerometer: "):] if "no accelerometer: " in note else ""
+        raise InputError("--accelerometer: the session has no accelerometer (columns ax ay az, m/s^2)"
+                         + (f": {why}" if why else "; import it with its accelerometer") + ", or solve without "
+                         "--accelerometer")
 
 
 def calibrator(method):

@@ -7,12 +7,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from magyro import EKF, calibrate
-from magyro.errors import InputError
+from magyro.errors import InputError, ObservabilityError
 from magyro.front.rests import find_rests
 from magyro.io import write_session
 from magyro.options import Options
@@ -86,6 +87,24 @@ def test_no_accelerometer_in_the_session_is_exit_2(broad02_solved, tmp_path, run
     write_session(dataclasses.replace(session, t_acc_s=None, acc_m_s2=None), path)
     message = assert_plain_failure(run_magyro("solve", str(path), "--accelerometer", "-q"), 2)
     assert "no accelerometer" in message and "ax ay az" in message
+
+
+def test_no_accelerometer_is_said_before_the_motion_is_judged(tmp_path):
+    """A still PX4 log without its accelerometer: exit 2 for the missing accelerometer, not exit 3 for the motion
+    (fixing the motion would only have led to this refusal); the Sensor Logger's left-out file is named."""
+    from magyro.io import import_ulog
+
+    still = import_ulog(Path(__file__).resolve().parents[1] / "data" / "px4-sample-appended-multiple.ulg")
+    bare = dataclasses.replace(still, t_acc_s=None, acc_m_s2=None)
+    with pytest.raises(ObservabilityError):
+        calibrate(bare)
+    with pytest.raises(InputError, match="has no accelerometer .columns ax ay az, m/s.2.; import it with its"):
+        calibrate(bare, Options(accelerometer=True))
+    phone = dataclasses.replace(bare, metadata={"sensor_note": "gyro from Gyroscope.csv; no accelerometer: "
+                                                               "Accelerometer.csv left out, it is without gravity"})
+    with pytest.raises(InputError, match=r"m/s\^2\): Accelerometer.csv left out, it is without gravity, or solve "
+                                         "without --accelerometer"):
+        calibrate(phone, Options(accelerometer=True))
 
 
 def test_the_ekf_does_not_calibrate_the_accelerometer(broad02_solved):

@@ -170,6 +170,10 @@ def test_real_sensor_logger_iphone_calibrated_files(tmp_path):
     s = import_preset([folder], "sensor-logger")
     assert "calibrated by the phone" in s.metadata["sensor_note"]
     assert s.acc_m_s2 is None and len(s.t_gyro_s) == 1038
+    # said, so that --accelerometer can say why there is none
+    assert s.metadata["sensor_note"].endswith("no accelerometer: Accelerometer.csv left out, it is the phone's "
+                                              "acceleration without gravity; record TotalAcceleration or "
+                                              "AccelerometerUncalibrated to calibrate the accelerometer")
     archive = tmp_path / "top.zip"
     with zipfile.ZipFile(archive, "w", zipfile.ZIP_DEFLATED) as z:
         for f in sorted(folder.iterdir()):
@@ -177,6 +181,7 @@ def test_real_sensor_logger_iphone_calibrated_files(tmp_path):
     z_session = import_preset([archive], "sensor-logger")
     np.testing.assert_array_equal(z_session.gyro_rad_s, s.gyro_rad_s)
     np.testing.assert_array_equal(z_session.t_mag_s, s.t_mag_s)
+    assert z_session.metadata["sensor_note"] == s.metadata["sensor_note"]
 
 
 SHIPPED_WILD = Path(__file__).resolve().parents[1] / "data" / "wild"

@@ -68,8 +68,8 @@ def import_preset(sources, preset: str, skip_rows: int = 0, header_line: int = 0
         chosen = _chosen_files(preset, files, explicit, delimiter, header_line)
         units = {"sensor-logger": dict(time_unit="ns"), "phyphox": dict(time_unit="s")}[preset]
         acc_unit = ACC_AUTO if any(f.acc_unit_from_gravity for f in chosen) else "m/s^2"
-        extra = {"preset": preset, "source_given": ", ".join(map(str, sources)),
-                 "sensor_note": "; ".join(f.note for f in chosen if f.note)}
+        notes = [f.note for f in chosen if f.note] + _left_out(preset, files, chosen)
+        extra = {"preset": preset, "source_given": ", ".join(map(str, sources)), "sensor_note": "; ".join(notes)}
         return import_csv_files([f.path for f in chosen], {i: f.columns for i, f in enumerate(chosen)},
                                 gyro_unit="rad/s", mag_unit="uT", acc_unit=acc_unit, delimiter=delimiter,
                                 skip_rows=skip_rows, header_line=header_line,
@@ -89,6 +89,21 @@ def _chosen_files(preset: str, files: list[tuple[Path, str]], explicit: bool, de
         raise InputError(f"no {' and no '.join(missing)} file among {', '.join(l for _, l in files) or '(none)'}; "
                          f"the {preset} preset needs {_needed(preset, missing)}")
     return chosen
+
+
+def _left_out(preset: str, files: list[tuple[Path, str]], chosen: list) -> list[str]:
+    """A note for an export whose only accelerometer file is Sensor Logger's Accelerometer.csv: it is the phone's
+    acceleration without gravity, so the session has no accelerometer (and `--accelerometer` says why)."""
+    if preset != "sensor-logger" or any(f.group == "accelerometer" for f in chosen):
+        return []
+    if not any(path.name.lower() == "accelerometer.csv" for path, _ in files):
+        return []
+    return [ACCELEROMETER_WITHOUT_GRAVITY]
+
+
+ACCELEROMETER_WITHOUT_GRAVITY = ("no accelerometer: Accelerometer.csv left out, it is the phone's acceleration "
+                                 "without gravity; record TotalAcceleration or AccelerometerUncalibrated to "
+                                 "calibrate the accelerometer")
 
 
 # --------------------------------------------------------------------------- sources
@@ -174,7 +189,8 @@ def _sensor_logger_names() -> list[str]:
 
 
 def _is_sensor_logger_member(name: str) -> bool:
-    return Path(name).stem.lower() in _SENSOR_LOGGER
+    """A zip member the preset unpacks: its files, and Accelerometer.csv (not read: its lack of gravity is noted)."""
+    return Path(name).stem.lower() in _SENSOR_LOGGER or Path(name).name.lower() == "accelerometer.csv"
 
 
 _WANTED = {"sensor-logger": _is_sensor_logger_member, "phyphox": lambda name: True}
