@@ -54,7 +54,7 @@ def nominal_attitudes(session: Session, K0, eps0, t_node_s) -> tuple[np.ndarray,
     q = np.empty((len(t), 4))   # quaternions, turned into matrices at the nodes only (a twelfth of the samples)
     stretch = np.empty(len(t), dtype=int)
     for k, (a, b) in enumerate(stretch_bounds(t)):
-        q[a:b] = so3.integrated_quaternions(t[a:b], w[a:b])
+        q[a:b] = integrated_like_body_rates(t[a:b], w[a:b])
         stretch[a:b] = k
     i = np.clip(np.searchsorted(t, t_node_s, side="right") - 1, 0, len(t) - 1)
     ahead = t_node_s - t[i]
@@ -63,6 +63,15 @@ def nominal_attitudes(session: Session, K0, eps0, t_node_s) -> tuple[np.ndarray,
     return so3.quat_to_dcm(q[i]) @ so3.exp_so3(w[i] * ahead[:, None]), stretch[i], in_hole
 
 
+def integrated_like_body_rates(t_s: np.ndarray, omega_rad_s: np.ndarray) -> np.ndarray:
+    """The unit quaternions whose matrices `so3.integrate_body_rates` gives, multiplied in its order (its
+    log-depth prefix product over the whole stretch): the linearisation point is then the same bit for bit, and
+    with it IPOPT's path (the blocked product of `so3.integrated_quaternions`, 3x faster, moved two of Table I's 50
+    solves by 1.2e-6 and 1.7e-6 of their std through rounding). Only the matrices are saved: made at the nodes."""
+    dt = np.diff(t_s)[:, None]
+    wa, wb = omega_rad_s[:-1], omega_rad_s[1:]
+    steps = so3.exp_quat(0.5 * (wa + wb) * dt + (dt**2 / 12.0) * np.cross(wa, wb))
+    return so3.cumulative_quat_product(np.concatenate([np.array([[1.0, 0.0, 0.0, 0.0]]), steps]))
 
 
 def aligned_stretches(C_nodes: np.ndarray, stretch: np.ndarray, in_hole: np.ndarray, field_m_nodes: np.ndarray,
