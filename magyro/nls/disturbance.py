@@ -195,15 +195,15 @@ class ThetaRows:
         self.rows = ca.Function("interval_theta_rows", inputs, [ca.densify(k(*inputs)[0])])
         self.maps = {}
 
-    def __call__(self, n: slice, columns: slice | None = None) -> np.ndarray:
-        """(m, residuals, n_theta) of the `columns` of each interval's residuals (default: the magnetometer's)."""
+    def __call__(self, n: slice) -> np.ndarray:
+        """(m, 3 stride, n_theta): the magnetometer residuals' rows of each interval."""
         problem, m = self.problem, n.stop - n.start
         if m not in self.maps:
             self.maps[m] = self.rows.map(m, [True, False, False, True, False], [False], {})
         values = evaluate(self.maps[m], self.x_theta, self.states[n].ravel(), self.states[n.start + 1 : n.stop + 1].ravel(),
                           self.g_values, self.data[n].ravel())[0]
         rows = values.reshape(m, problem.n_res_per_interval, problem.n_theta)   # J_theta^T column-major, per interval
-        return rows[:, slice(0, 3 * problem.grid.stride) if columns is None else columns]
+        return rows[:, : 3 * problem.grid.stride]
 
 
 class ExponentialDoubleSum:

@@ -124,12 +124,7 @@ def kalibr_text(cal: Calibration, source: str = "") -> str:
              '  model: "scale-misalignment"',
              f"  T_i_b: {yaml_array(np.eye(4))}",
              f"  time_offset: {yaml_number(0.0)}",
-             "  gyroscopes:",
-             f"    M: {yaml_array(p['M'])}",
-             f"    A: {yaml_array(p['A'])}",
-             f"    C_gyro_i: {yaml_array(p['C_gyro_i'])}",
-             "    # not a Kalibr key: the constant gyro bias in Kalibr's sign, rad/s",
-             f"    b: {yaml_array(p['b'])}",
+             *kalibr_gyroscope_lines(p),
              "  magyro:",
              "    # not Kalibr keys: w_m = C_b_m w_i (magnetometer frame); m_m = R (y_m - h), unit norm",
              f"    C_b_m: {yaml_array(cal.C_b_m)}",
@@ -173,12 +168,7 @@ def _kalibr_text_with_accelerometer(cal: Calibration, p: dict, source: str) -> s
              f"    M: {yaml_array(p['M_accel'])}",
              "    # not a Kalibr key: the constant accelerometer bias in Kalibr's sign, m/s^2",
              f"    b: {yaml_array(p['b_accel'])}",
-             "  gyroscopes:",
-             f"    M: {yaml_array(p['M'])}",
-             f"    A: {yaml_array(p['A'])}",
-             f"    C_gyro_i: {yaml_array(p['C_gyro_i'])}",
-             "    # not a Kalibr key: the constant gyro bias in Kalibr's sign, rad/s",
-             f"    b: {yaml_array(p['b'])}",
+             *kalibr_gyroscope_lines(p),
              "  magyro:",
              "    # not Kalibr keys: w_b = i_to_b w_i, f_b = i_to_b f_i (magyro's gyro frame b); w_m = C_b_m w_b",
              "    # (magnetometer frame); m_m = R (y_m - h), unit norm; g_m_s2 the gravity the accelerometer was",
@@ -340,3 +330,14 @@ def px4_text(cal: Calibration, source: str = "", rate_deg_s: float = 360.0) -> s
         rows += [(f"CAL_ACC0_{ax}OFF", a["offset_m_s2"][i]) for i, ax in enumerate("XYZ")]
         rows += [(f"CAL_ACC0_{ax}SCALE", a["scale"][i]) for i, ax in enumerate("XYZ")]
     return "\n".join(header + [f"1\t1\t{name}\t{yaml_number(value)}\t9" for name, value in rows]) + "\n"
+
+
+def kalibr_gyroscope_lines(p: dict) -> list[str]:
+    """Kalibr's gyroscopes block of a split (M, A, C_gyro_i and the bias under the extra key b), with or without an
+    accelerometer."""
+    return ["  gyroscopes:",
+            f"    M: {yaml_array(p['M'])}",
+            f"    A: {yaml_array(p['A'])}",
+            f"    C_gyro_i: {yaml_array(p['C_gyro_i'])}",
+            "    # not a Kalibr key: the constant gyro bias in Kalibr's sign, rad/s",
+            f"    b: {yaml_array(p['b'])}"]
