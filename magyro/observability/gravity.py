@@ -34,6 +34,7 @@ import numpy as np
 from magyro.observability.advice import describe_direction
 from magyro.observability.gate import AXES, FLOOR_FACTOR, NUMERICAL_RTOL, directional_rank, noise_matrix
 from magyro.observability.matrix import information_integral, interpolate_rows, trapezoid_weights
+from magyro.session import hole_spans_s, overlaps_a_hole
 from magyro.text import significant
 
 STILL_SCALE = 0.05        # |y| off g by 5 % of g counts exp(-1/2) = 0.61, by 10 % 0.14, by 15 % 0.011
@@ -159,7 +160,7 @@ class AccelerometerObservability:
             if g.weakest:
                 out.append("    the field's weakest directions: information with gravity / without; signal to noise "
                            "(x the noise floor) of the field, of gravity")
-                out += [f"      {w.in_words}: x{w.information_gain:.2f}; {_fmt(w.snr_field)}, {_fmt(w.snr_gravity)}"
+                out += [f"      {w.in_words}: x{_fmt(w.information_gain)}; {_fmt(w.snr_field)}, {_fmt(w.snr_gravity)}"
                         + ("  RESCUED by gravity" if w.rescued else "") for w in g.weakest]
         if self.advice:
             out.append("  to calibrate the accelerometer too (magyro solve --accelerometer):")
@@ -292,12 +293,12 @@ def gyro_with_gravity(session, field_m, analysis, rates_rad_s, gyro_sample_std: 
         return None
     t_in, y_in = t[inside], y[inside]
     norm_a = np.linalg.norm(acc, axis=1)
-    u_a = acc / np.where(norm_a > 0, norm_a, 1.0)[:, None]
-    root_w = np.sqrt(stillness(norm_a, g))
-    G_g = information_integral(t_in, y_in, ta, u_a * root_w[:, None])   # M^T M is quadratic in u: weight w
-    u = interpolate_rows(t_in, ta, u_a)
+    u = interpolate_rows(t_in, ta, acc / np.where(norm_a > 0, norm_a, 1.0)[:, None])
     u /= np.linalg.norm(u, axis=1, keepdims=True)
-    W = trapezoid_weights(t_in) * stillness(np.interp(t_in, ta, norm_a), g)
+    still = stillness(np.interp(t_in, ta, norm_a), g)
+    still[overlaps_a_hole(t_in, t_in, hole_spans_s(ta))] = 0.0     # nothing is known of gravity in a hole
+    G_g = information_integral(t_in, y_in, t_in, u * np.sqrt(still)[:, None])   # M^T M is quadratic in u
+    W = trapezoid_weights(t_in) * still
     N_g = weighted_noise_matrix(t_in, y_in, u, W, gyro_sample_std, sigma_u)
 
     G_f = analysis.information
@@ -311,8 +312,9 @@ def gyro_with_gravity(session, field_m, analysis, rates_rad_s, gyro_sample_std: 
     weakest = []
     for k in range(min(max(most, 12 - analysis.rank), 12)):   # the analysis keeps its directions weakest first
         v = analysis.eigenvectors[:, k]
-        weakest.append(WeakDirection(describe_direction(v), v, float(v @ G @ v) / float(v @ G_f @ v),
-                                     _snr(v, G_f, N_f), _snr(v, G_g, N_g)))
+        seen = float(v @ G_f @ v)
+        gain = float(v @ G @ v) / seen if seen > NUMERICAL_RTOL * float(np.max(np.linalg.eigvalsh(G_f))) else math.inf
+        weakest.append(WeakDirection(describe_direction(v), v, gain, _snr(v, G_f, N_f), _snr(v, G_g, N_g)))
 
     # which way the device turned, against each reference direction
     m_hat = interpolate_rows(t_in, session.t_mag_s, field_m)
@@ -323,8 +325,8 @@ def gyro_with_gravity(session, field_m, analysis, rates_rad_s, gyro_sample_std: 
     about_field = float(np.sum(dt * np.sum(r * m_hat, axis=1) ** 2) / max(np.sum(dt * r2), 1e-300))
     about_gravity = float(np.sum(W * np.sum(r * u, axis=1) ** 2) / max(np.sum(W * r2), 1e-300))
     angle = np.degrees(np.arccos(np.clip(np.abs(np.sum(m_hat * u, axis=1)), 0.0, 1.0)))   # between the lines
-    still = stillness(np.interp(t_in, ta, norm_a), g) >= 0.5
-    angle_med = float(np.median(angle[still] if np.any(still) else angle))
+    held = still >= 0.5
+    angle_med = float(np.median(angle[held] if np.any(held) else angle))
     cond = float(lam[-1] / lam[0]) if lam[0] > 0 else math.inf
     return GyroWithGravity(rank, cond, lam / lam[-1], analysis.rank, analysis.condition, rank_g, weakest,
                            about_field, about_gravity, angle_med)
