@@ -179,3 +179,36 @@ def test_gravity_adds_information_to_the_gyro(name, request):
     # Europe: the field dips some 65 deg, so its line is about 25 deg from gravity's
     assert 10 < g.field_gravity_angle_deg < 35
     json.dumps(report.to_dict(), allow_nan=False)
+
+
+@pytest.fixture(scope="module")
+def report02_first_rest(broad02):
+    return magyro.observe(broad02.within(37.1, 39.9))
+
+
+def test_at_rest_gravity_sees_the_bias_along_the_field(report02_first_rest):
+    """BROAD 02's first rest (37.1-39.9 s, before the movement): the field sees the gyro bias across it (rank 2),
+    gravity across itself (2), both together the whole bias (3); the direction gravity rescues is the bias along
+    the field."""
+    r = report02_first_rest
+    g = r.accelerometer.gyro
+    assert (r.rank, g.rank_field_only, g.rank_gravity_only, g.rank) == (2, 2, 2, 3)
+    assert len(g.weakest) == 10                     # every direction the field leaves unexcited
+    rescued = [w for w in g.weakest if w.rescued]
+    assert rescued
+    v = max(rescued, key=lambda w: w.snr_gravity).vector
+    assert np.sum(v[9:] ** 2) > 0.95               # the bias, no column of K
+    field = np.mean(r.field_directions, axis=0)
+    assert abs(v[9:] @ field) / (np.linalg.norm(v[9:]) * np.linalg.norm(field)) > 0.95
+    assert "RESCUED by gravity" in r.table()
+    # the accelerometer at rest: one pose, b alone is seen
+    assert r.accelerometer.rank == 3 and set(missing_poses(r)) == {"+x", "-x", "+y", "-y", "-z"}
+
+
+def test_at_the_start_of_the_motion_two_reference_vectors_reach_full_rank_first(broad02):
+    """BROAD 02's rest and the first 1.6 s of its motion: the field alone excites 8 of the 12 gyro parameters,
+    gravity alone 8, both together all 12."""
+    g = magyro.observe(broad02.within(37.1, 41.5)).accelerometer.gyro
+    assert (g.rank_field_only, g.rank_gravity_only, g.rank) == (8, 8, 12)
+    assert sum(w.rescued for w in g.weakest) == 4
+    assert g.condition < g.condition_field_only / 10
