@@ -69,7 +69,11 @@ def report_xio(tmp_path_factory, run_magyro):
 
 
 def missing_poses(report) -> set[str]:
-    return {f for f in FACES if report.accelerometer.face_s[f] < FACE_ENOUGH_S}
+    return missing_poses_of(report.accelerometer)
+
+
+def missing_poses_of(accelerometer) -> set[str]:
+    return {f for f in FACES if accelerometer.face_s[f] < FACE_ENOUGH_S}
 
 
 def asks_for(advice: str, face: str) -> bool:
@@ -212,3 +216,21 @@ def test_at_the_start_of_the_motion_two_reference_vectors_reach_full_rank_first(
     assert (g.rank_field_only, g.rank_gravity_only, g.rank) == (8, 8, 12)
     assert sum(w.rescued for w in g.weakest) == 4
     assert g.condition < g.condition_field_only / 10
+
+
+WILD = Path(__file__).resolve().parents[2] / "shared" / "data" / "wild"   # as tests/test_wild_corpus.py finds it
+if not WILD.is_dir():
+    WILD = Path("/work/shared/data/wild")
+
+
+@pytest.mark.skipif(not (WILD / "imu_tools").is_dir(), reason=f"the corpus of real recordings ({WILD}) is absent")
+def test_turning_about_the_vertical_only_gravity_sees_none_of_it(run_magyro, tmp_path):
+    """imu_tools' Phidgets IMU lying upside down and turned about the vertical (2017 bag): gravity stays along +z in
+    the body (the "z down" pose, nothing else), so its own M sees none of the turning and cannot reach full rank."""
+    out = tmp_path / "p.parquet"
+    r = run_magyro("import", "rosbag", WILD / "imu_tools" / "imutools-2017-phidgets_imu_upside_down.bag", "-o", out)
+    assert r.returncode == 0, r.stderr
+    a = magyro.observe(load_session(out)).accelerometer
+    assert missing_poses_of(a) == {"+x", "-x", "+y", "-y", "+z"}
+    assert a.rank == 3 and a.directions[0][4].startswith("0.71 A[:,z] + 0.71 b")
+    assert a.gyro.rotation_about_gravity > 0.95 and a.gyro.rank_gravity_only < 12
