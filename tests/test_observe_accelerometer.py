@@ -234,3 +234,21 @@ def test_turning_about_the_vertical_only_gravity_sees_none_of_it(run_magyro, tmp
     assert missing_poses_of(a) == {"+x", "-x", "+y", "-y", "+z"}
     assert a.rank == 3 and a.directions[0][4].startswith("0.71 A[:,z] + 0.71 b")
     assert a.gyro.rotation_about_gravity > 0.95 and a.gyro.rank_gravity_only < 12
+
+
+def test_the_figure_draws_gravity_beside_the_field(report02, report02_plain):
+    pytest.importorskip("matplotlib")
+    from magyro.observability.plot import report_figure
+
+    def texts(report):
+        fig = report_figure(report)
+        sphere = fig.axes[0]
+        legend = sphere.get_legend()
+        panel = next(ax for ax in fig.axes if ax.texts)       # the text panel
+        return ([t.get_text() for t in legend.get_texts()] if legend else []), panel.texts[0].get_text()
+
+    legend, text = texts(report02)
+    assert any(t.startswith("specific force (up), accelerometer") for t in legend)
+    assert "accelerometer: rank 12 of 12" in text and "x axis down" in text
+    legend, text = texts(report02_plain)
+    assert legend == [] and "accelerometer" not in text

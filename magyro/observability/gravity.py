@@ -112,6 +112,8 @@ class AccelerometerObservability:
     cells: int
     advice: list = field(default_factory=list)
     gyro: GyroWithGravity | None = None
+    # for the figure only (not in the JSON): gravity's still directions (|y| within ~6 % of g), in the body
+    gravity_directions: np.ndarray = field(repr=False, default=None)
 
     @property
     def sphere_fraction(self) -> float:
@@ -134,6 +136,7 @@ class AccelerometerObservability:
                                "weakest_body_direction": _arr(self.spread_weakest), "enough": SPREAD_ENOUGH},
             "poses": {f: {"seconds": _num(self.face_s[f]), "held": bool(self.face_s[f] >= FACE_ENOUGH_S)}
                       for f in FACES},
+            "poses_meaning": "+x: the x axis up (the reading +g on x, gravity along -x in the body); -x: x down",
             "pose_cone_deg": FACE_CONE_DEG, "pose_enough_s": FACE_ENOUGH_S,
             "sphere": {"fraction_visited": _num(self.sphere_fraction), "cells_visited": int(self.cells_visited),
                        "cells": int(self.cells), "grid": SPHERE_GRID.replace("magnetometer frame", "accelerometer frame")},
@@ -381,7 +384,8 @@ def observe_accelerometer(full_session, moving_session, field_m, analysis, rates
     c_lam, c_vec = np.linalg.eigh(cov)
     weakest = c_vec[:, 0] * np.sign(c_vec[np.argmax(np.abs(c_vec[:, 0])), 0])
     faces = face_seconds(u, W)
-    cells = np.unique(sphere_cell(u[stillness(np.linalg.norm(acc, axis=1), g) >= 0.5]))
+    held = u[stillness(np.linalg.norm(acc, axis=1), g) >= 0.5]
+    cells = np.unique(sphere_cell(held))
     spread = float(3.0 * max(c_lam[0], 0.0))
     gyro = gyro_with_gravity(moving_session, field_m, analysis, rates_rad_s, gyro_sample_std, mag_std_unit_field,
                              g, sigma_u)
@@ -390,7 +394,7 @@ def observe_accelerometer(full_session, moving_session, field_m, analysis, rates
         rank=3 * rank4, condition=float(lam[-1] / lam[0]) if lam[0] > 0 else math.inf, eigenvalues=lam / lam[-1],
         directions=directions, spread=spread, spread_eigenvalues=3.0 * c_lam, spread_weakest=weakest,
         face_s=faces, cells_visited=int(cells.size), cells=SPHERE_BANDS * SPHERE_SECTORS,
-        advice=accelerometer_advice(faces, spread, weakest), gyro=gyro)
+        advice=accelerometer_advice(faces, spread, weakest), gyro=gyro, gravity_directions=held)
 
 
 # --------------------------------------------------------------------------- helpers
