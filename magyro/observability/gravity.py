@@ -234,9 +234,10 @@ def accelerometer_advice(face_s: dict, spread: float, weakest: np.ndarray) -> li
                       + f": gravity sat there less than {FACE_ENOUGH_S:g} s (a six-pose calibration holds all six).")
     if spread < SPREAD_ENOUGH:
         axis = body_direction(weakest)
+        named = f"its {axis} axis" if len(axis) == 1 else f"the body direction {axis}"
         advice.append(f"Gravity's direction hardly varied along {axis} (spread {spread:.2g}, enough from "
-                      f"{SPREAD_ENOUGH:g}): the accelerometer's response to {axis} cannot be told from its bias; "
-                      f"turn the device so that its {axis} axis points up and down.")
+                      f"{SPREAD_ENOUGH:g}): the accelerometer's response along it cannot be told from its bias; "
+                      f"turn the device so that {named} points up and down.")
     return advice
 
 
