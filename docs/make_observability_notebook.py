@@ -43,6 +43,7 @@ used here, and this notebook quotes its argument.
    the canonical motions.
 3. What stays unobservable under one- and two-axis rotation, and why.
 4. How the predicted accuracy improves as the recording gets longer.
+5. Gravity, a second reference vector: what an accelerometer adds (on real data, BROAD trial 2).
 
 The test suite runs this notebook (`tests/test_notebook.py`), so every `assert` below is checked.
 """)
@@ -416,6 +417,79 @@ least about that fast, and halving a std may take up to four times the recording
 through larger angles raises the information per second instead, and a motion that misses an axis
 gains nothing there however long it lasts (Section 3). Section 6 of observability.md checks these
 predictions against the actual spread of 100 solves: they agree within 10 %.
+""")
+
+
+# --------------------------------------------------------------------------- 5. gravity, a second reference vector
+
+md(r"""
+## 5. Gravity, a second reference vector
+
+`M` is built from the field's direction alone: at each instant `dm/dt = m x w` sees the rotation
+across the field, never the rotation about it. Gravity's direction in the body obeys the same
+equation, so an accelerometer gives a second `M`, built the same way from the specific force's
+direction `u` (up, in the body), and its `M^T M` adds to the field's. `magyro observe` does this
+when the session has `ax ay az` (`ObservabilityReport.accelerometer`, docs/accelerometer.md); the
+verdict stays the theorem's, the field's alone. We use the real BROAD trial 2 shipped in `data/`
+(an IMU turned by hand about every axis, with rests at both ends) and cut it in time.
+
+The theorem's still case (Section 2) predicts rank 2 for one reference vector: the bias across it.
+Two reference vectors that are not parallel see the whole bias: rank 3. At the start of the motion,
+the rate seen fully at each instant (three components instead of two) reaches full rank sooner.
+""")
+
+code(r"""
+from pathlib import Path
+from magyro.io import load_session
+
+broad = load_session(Path(magyro.__file__).resolve().parents[1] / "data" / "broad-02.parquet")
+rows = {}
+for label, (t0, t1) in {"first rest": (37.1, 39.9), "rest + 1.6 s of motion": (37.1, 41.5),
+                        "whole trial": (0.0, 1e9)}.items():
+    g = magyro.observe(broad.within(t0, t1)).accelerometer.gyro
+    rows[label] = {"field only": g.rank_field_only, "gravity only": g.rank_gravity_only, "both": g.rank,
+                   "condition field only": g.condition_field_only, "condition both": g.condition,
+                   "angle field-gravity (deg)": g.field_gravity_angle_deg}
+    if label == "first rest":
+        rest = g
+ranks = pd.DataFrame.from_dict(rows, orient="index")
+assert tuple(ranks.loc["first rest", ["field only", "gravity only", "both"]]) == (2, 2, 3)
+assert tuple(ranks.loc["rest + 1.6 s of motion", ["field only", "gravity only", "both"]]) == (8, 8, 12)
+ranks
+""")
+
+md(r"""
+At rest the direction gravity rescues is the bias along the field, the one component of `eps`
+the field cannot see:
+""")
+
+code(r"""
+rescued = max((w for w in rest.weakest if w.rescued), key=lambda w: w.snr_gravity)
+field_direction = magyro.observe(broad.within(37.1, 39.9)).field_directions.mean(axis=0)
+cosine = abs(rescued.vector[9:] @ field_direction) / np.linalg.norm(rescued.vector[9:]) / np.linalg.norm(field_direction)
+print(f"rescued: {rescued.in_words}; signal to noise, field {rescued.snr_field:.2g}, gravity {rescued.snr_gravity:.3g}")
+print(f"its bias part against the mean field direction: cos = {cosine:.3f}")
+assert cosine > 0.95
+""")
+
+md(r"""
+The accelerometer's own 12 parameters need something else: `f = A y + b` read against gravity
+gives the information `(sum of [u;1][u;1]^T) (x) I`, singular when gravity's direction stays on a
+plane in the body. Cutting trial 2's accelerometer to the samples with the specific force within
+30 deg of `+z` (as if the device had never been held otherwise) loses a column of `A` against the bias:
+""")
+
+code(r"""
+up = broad.acc_m_s2 / np.linalg.norm(broad.acc_m_s2, axis=1, keepdims=True)
+keep = up[:, 2] > np.cos(np.radians(30))
+z_up = dataclasses.replace(broad, t_acc_s=broad.t_acc_s[keep], acc_m_s2=broad.acc_m_s2[keep])
+for label, s in (("whole trial", broad), ("z up only", z_up)):
+    a = magyro.observe(s).accelerometer
+    print(f"{label:12} rank {a.rank} of 12, spread {a.spread:.3f}, weakest {a.directions[0][4]}")
+    print("             poses held (s):", {f: round(sec, 1) for f, sec in a.face_s.items()})
+    for advice in a.advice:
+        print("             -", advice)
+assert a.rank == 9
 """)
 
 

@@ -13,6 +13,8 @@ each direction. docs/observability.md derives it all.
                 predicted accuracy, verdict); no solve
     advice      weak directions in parameter names, and the motion that excites them
     report      `ObservabilityReport`, `Targets`: the report as data, JSON and table
+    gravity     with an accelerometer: what its 12 parameters need, and gravity as a second reference
+                vector beside the field (shown beside the verdict, never in it)
     plot        the report's figure (matplotlib)
 
 `analyse` and `ObservabilityAnalysis` are imported with the package; `observe`,

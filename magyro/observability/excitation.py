@@ -36,6 +36,7 @@ from magyro.nls.solve import default_stride
 from magyro.observability.advice import weak_directions
 from magyro.observability.gate import (WELL_CONDITIONED, accuracy_shortfalls, accuracy_summary, ObservabilityAnalysis, cumulative_noise_matrix,
                                        directional_rank)
+from magyro.observability.gravity import observe_accelerometer
 from magyro.observability.matrix import cumulative_information, trapezoid_weights
 from magyro.observability.report import (SPHERE_BANDS, SPHERE_SECTORS, Coverage, ObservabilityReport, Targets,
                                          Timeline, accuracy_rows, fmt)
@@ -87,6 +88,10 @@ def observe(session: Session, options: Options | None = None, targets: Targets |
     if problem is not None and not any("all three" in a for a in advice):
         advice = ["Turn the device through large angles about all three of its axes, so that the field sweeps "
                   "the sphere (the magnetometer's soft/hard iron needs it)."] + advice
+    accelerometer = None
+    if session.acc_m_s2 is not None:   # gravity, a second reference vector: shown beside, the verdict unchanged
+        accelerometer = observe_accelerometer(session, s, field_m, analysis, rates, found.segments_s,
+                                              levels.gyro_sample_std_rad_s, mag_std_unit_field)
     return ObservabilityReport(
         source=session.source, duration_s=session.duration_s, t_start_s=t0,
         gyro_samples=len(session.t_gyro_s), mag_samples=len(session.t_mag_s),
@@ -103,7 +108,7 @@ def observe(session: Session, options: Options | None = None, targets: Targets |
         analysed_span_s=[float(s.t_gyro_s[0]), float(s.t_gyro_s[-1])],
         rests_s=[[float(a), float(b)] for a, b in found.segments_s],
         mag_unit=session.mag_unit, t_mag_s=s.t_mag_s, field_directions=_unit(field_m),
-        t_gyro_s=s.t_gyro_s, rates_deg_s=np.rad2deg(rates),
+        t_gyro_s=s.t_gyro_s, rates_deg_s=np.rad2deg(rates), accelerometer=accelerometer,
     )
 
 

@@ -1,4 +1,5 @@
-"""The figure of `magyro observe --plot`: field-direction coverage, eigenvalue growth, signal to noise, rates.
+"""The figure of `magyro observe --plot`: field-direction coverage (and gravity's, with an accelerometer),
+eigenvalue growth, signal to noise, rates.
 
 Needs matplotlib, an optional extra (`pip install 'magyro[plot]'`); `require_matplotlib`
 says so before any work is done.
@@ -29,6 +30,7 @@ def require_matplotlib():
 FIGURE_SIZE_IN = (10.0, 9.0)   # shown 924 px wide in `magyro report`, its smallest text (8.5 pt) is 10.9 px there
 TEXT_PT = 8.5                   # the smallest text: legends and the text panel
 TEXT_CHARACTERS = 140           # a line of the text panel, which spans the figure's width
+GRAVITY_POINTS = 3000           # at most this many of gravity's directions drawn (with an accelerometer)
 
 
 def plot_report(report: ObservabilityReport, path) -> None:
@@ -68,6 +70,12 @@ def report_figure(report: ObservabilityReport):
         ax_sphere.axhline(z, color="0.8", lw=0.5)
     for x in np.linspace(-180, 180, SPHERE_SECTORS + 1):
         ax_sphere.axvline(x, color="0.8", lw=0.5)
+    a = report.accelerometer
+    if a is not None and a.gravity_directions is not None and len(a.gravity_directions):
+        gu = a.gravity_directions[:: max(1, len(a.gravity_directions) // GRAVITY_POINTS)]
+        ax_sphere.scatter(np.rad2deg(np.arctan2(gu[:, 1], gu[:, 0])), gu[:, 2], s=4, marker="x", color="tab:red",
+                          lw=0.6, label=f"specific force (up), accelerometer, still: {100 * a.sphere_fraction:.0f}%")
+        ax_sphere.legend(loc="lower right", fontsize=TEXT_PT)
     ax_sphere.set_xlim(-180, 180)
     ax_sphere.set_ylim(-1, 1)
     ax_sphere.set_xlabel("longitude of the field direction, magnetometer frame (deg)", fontsize=9)
@@ -105,6 +113,11 @@ def report_figure(report: ObservabilityReport):
     lines += ["weakest directions:"] + [f"  {w}" for d in report.weak_directions[:4] for w in _wrap(d, width - 2)]
     if report.advice:
         lines += ["", "advice:"] + [f"  {w}" for a in report.advice[:3] for w in _wrap(a, width - 2)]
+    if report.accelerometer is not None:
+        acc = report.accelerometer
+        lines += ["", f"accelerometer: rank {acc.rank} of 12, gravity's spread {acc.spread:.2f}; the gyro with gravity "
+                      f"rank {acc.gyro.rank if acc.gyro else '-'} of 12"]
+        lines += [f"  {w}" for x in acc.advice[:2] for w in _wrap(x, width - 2)]
     ax_text.text(0.0, 1.0, "\n".join(lines), va="top", ha="left", fontsize=TEXT_PT, transform=ax_text.transAxes)
 
     for i in range(3):

@@ -88,6 +88,7 @@ class ObservabilityReport:
     rests_s: list                  # rests found, [[start, end], ...]
     mag_unit: str
     recording: object = None       # the recording check (magyro.front.findings.RecordingCheck), via magyro.observe
+    accelerometer: object = None   # gravity as a second reference vector (gravity.AccelerometerObservability), or None
     # for the figure only (not in the JSON)
     t_mag_s: np.ndarray = field(repr=False, default=None)
     field_directions: np.ndarray = field(repr=False, default=None)   # (Nm, 3) unit
@@ -154,6 +155,7 @@ class ObservabilityReport:
             "timeline": {"t_s": _arr(tl.t_s), "rank": [int(r) for r in tl.rank], "condition": _arr(tl.condition),
                          "eigenvalues": _arr(tl.eigenvalues), "signal_to_noise": _arr(tl.signal_to_noise)},
             **({"recording": self.recording.to_dict()} if self.recording is not None else {}),
+            **({"accelerometer": self.accelerometer.to_dict()} if self.accelerometer is not None else {}),
         }
 
     def to_json(self) -> str:
@@ -197,6 +199,8 @@ class ObservabilityReport:
             s = self.predicted_std
             out.append(f"  {'magnetometer h (' + self.mag_unit + ')':<32} " + "  ".join(fmt(v) for v in s.h))
             out.append(f"  {'magnetometer R diagonal':<32} " + "  ".join(fmt(s.R[i][i]) for i in range(3)))
+        if self.accelerometer is not None:
+            out += self.accelerometer.table_lines()
         return "\n".join(out)
 
 
