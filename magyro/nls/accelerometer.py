@@ -34,8 +34,9 @@ from magyro.nls.grid import Grid
 from magyro.result.reported import qr_split
 from magyro.session import HOLE_FACTOR
 
-HAND_WINDOW_S = 1.0          # the hand's acceleration variance is measured over this window
+HAND_WINDOW_S = 1.0          # the weights: the hand's acceleration variance is measured over this window
 HAND_MAX_LAG_S = 30.0        # its autocorrelation is measured up to this lag (a hand's slowest sway)
+HAND_SIZE_WINDOW_S = 30.0    # the std: its variance is measured over as long (`hand_motion`)
 
 
 @dataclass
@@ -161,14 +162,42 @@ def start_residuals(start: AccelerometerStart, C_m_i_nodes: np.ndarray) -> np.nd
     return np.where(start.count[:, None] > 0, mean_f - start.g_m_s2 * up, 0.0)
 
 
-def hand_weights(e: np.ndarray, start: AccelerometerStart) -> np.ndarray:
-    """(n_int,) weights 1 / sqrt(sigma_w^2 / n + s_h^2) of the interval means from their unweighted residuals e
-    (n_int, 3): s_h^2(t) per axis the residuals' mean square over HAND_WINDOW_S less the white part."""
+def hand_weights(e: np.ndarray, start: AccelerometerStart, correlated: float = 1.0) -> np.ndarray:
+    """(n_int,) weights 1 / sqrt(sigma_w^2 / n + c s_h^2) of the interval means from their unweighted residuals e
+    (n_int, 3): s_h^2(t) per axis the residuals' mean square over HAND_WINDOW_S less the white part, c =
+    `correlated` (`correlation_factor`: 1 for a hand independent from one interval to the next)."""
     used = start.count > 0
     white = white_variance(start)
     window = max(1, int(round(HAND_WINDOW_S / float(np.median(start.interval_s)))))
     local = local_mean_square(np.sqrt(np.sum(e**2, axis=1) / 3.0), used, window)
-    return np.where(used, 1.0 / np.sqrt(white + np.maximum(local - white, 0.0)), 0.0)
+    return np.where(used, 1.0 / np.sqrt(white + correlated * np.maximum(local - white, 0.0)), 0.0)
+
+
+def solved_hand_weights(e: np.ndarray, start: AccelerometerStart) -> np.ndarray:
+    """(n_int,) the interval means' weights from the solved residuals e (n_int, 3): the hand's variance counted as
+    many times as its spectrum at its peak exceeds a white one's (`correlation_factor` of the residuals'
+    autocorrelation). A hand sways at the frequencies the device turns at, where the calibration is sensitive:
+    weighted as independent, a few seconds of sway counted as dozens of independent intervals and pulled the gyro
+    with them (paper-table1-acc, 12 seeds: the gyro up to 4.8 of its std from the truth, its std up to 1.9x the
+    same session's without the accelerometer; weighted by c: 2.1 and 1.13x)."""
+    used = start.count > 0
+    max_lag = min(int(used.sum()) // 2, int(round(HAND_MAX_LAG_S / float(np.median(start.interval_s)))))
+    total = float(np.mean(e[used] ** 2)) if used.any() else 0.0
+    share = max(total - float(np.mean(white_variance(start)[used])), 0.0) / total if total > 0 else 0.0
+    return hand_weights(e, start, correlation_factor(tapered_autocorrelation(e[used], max_lag, share)))
+
+
+def correlation_factor(rho: np.ndarray) -> float:
+    """The peak over frequency of the spectrum of the autocorrelation rho (lags 0, 1, ..., tapered: never negative)
+    against a white process's of the same variance (at least 1): how much more variance a correlated process puts
+    at its worst frequency than independent intervals would."""
+    lag = len(rho) - 1
+    n = 1 << int(np.ceil(np.log2(8 * (lag + 1))))
+    kernel = np.zeros(n)
+    kernel[: lag + 1] = rho
+    if lag:
+        kernel[n - lag :] = rho[1:][::-1]
+    return float(max(np.fft.rfft(kernel).real.max(), 1.0))
 
 
 def white_variance(start: AccelerometerStart) -> np.ndarray:
@@ -209,24 +238,25 @@ def local_mean_square(x: np.ndarray, used: np.ndarray, window: int) -> np.ndarra
 
 
 def hand_motion(excess: np.ndarray, weight: np.ndarray, start: AccelerometerStart, residuals: np.ndarray) -> HandMotion:
-    """The hand's acceleration at the solution.
+    """The hand's acceleration at the solution, for the std (nls/hand_motion.py).
 
-    Its size from the specific force's size (`specific_force_excess`, n_int): its variance per axis is the excess's
-    mean square over HAND_WINDOW_S less the white part, the hand's acceleration taken as isotropic (along gravity
-    as across it). Not from the residuals: the attitudes absorb a slow hand's acceleration across gravity into a
-    tilt the gyro cannot refute, and the residuals say the hand barely moved (2-3x too little on paper-table1-acc).
-    Its autocorrelation from the solved residuals (n_int, 3) whitened by `weight`, over the hand's share of their
-    variance (`tapered_autocorrelation`): what the model leaves correlated, whatever its cause (on BROAD trial 02
-    the halves then agree to 2.9 RMS z, 4.3 with the turning's angular acceleration's autocorrelation instead)."""
+    Its size from the solved residuals (n_int, 3): its variance per axis is their mean square over
+    HAND_SIZE_WINDOW_S less the white part. Over a second a slow sway's square swings from zero to twice its mean
+    and the std counted too little of it (paper-table1-acc, 12 seeds: the reported std 0.22-0.79 of the actual
+    spread with 1 s, 0.44-1.4 with 30 s; the ensemble's own size gives 0.55-1.85).
+    Its autocorrelation from the specific force's size (`specific_force_excess`, n_int), the hand's acceleration
+    along gravity, which no tilt absorbs (the residuals' lose the sway across gravity that the attitudes take up),
+    over the hand's share of its variance (`tapered_autocorrelation`), the hand taken as isotropic."""
     used = weight > 0
-    window = max(1, int(round(HAND_WINDOW_S / float(np.median(start.interval_s)))))
-    e = np.where(used, excess - (np.mean(excess[used]) if used.any() else 0.0), 0.0)  # less what g or a scale leaves
-    hand = np.where(used, np.maximum(local_mean_square(e, used, window) - white_variance(start), 0.0), 0.0)
+    white = white_variance(start)
+    window = max(1, int(round(HAND_SIZE_WINDOW_S / float(np.median(start.interval_s)))))
+    size = np.sqrt(np.sum(residuals**2, axis=1) / 3.0)
+    hand = np.where(used, np.maximum(local_mean_square(size, used, window) - white, 0.0), 0.0)
     max_lag = min(int(used.sum()) // 2, int(round(HAND_MAX_LAG_S / float(np.median(start.interval_s)))))
-    z = (residuals * weight[:, None])[used]
-    total = 1.0 / np.maximum(weight[used], 1e-300) ** 2
-    share = float(np.mean(np.maximum(total - white_variance(start)[used], 0.0) / total))
-    return HandMotion(weight, np.sqrt(hand), tapered_autocorrelation(z, max_lag, share))
+    e = np.where(used, excess - (np.mean(excess[used]) if used.any() else 0.0), 0.0)  # less what g or a scale leaves
+    total = float(np.mean(e[used] ** 2)) if used.any() else 0.0
+    share = max(total - float(np.mean(white[used])), 0.0) / total if total > 0 else 0.0
+    return HandMotion(weight, np.sqrt(hand), tapered_autocorrelation(e[used][:, None], max_lag, share))
 
 
 def tapered_autocorrelation(z: np.ndarray, max_lag: int, hand_share: float) -> np.ndarray:

@@ -1,11 +1,11 @@
 """The std that counts the hand: its acceleration is correlated from one interval to the next.
 
 The accelerometer's interval means carry the hand's acceleration a(t), tenths of m/s^2 while a hand turns the
-device. Its variance is in their weights (nls/accelerometer.py), which counts every interval as independent; it
-is not: a hand sways at the frequencies it turns at. As for the room's field (nls/disturbance.py), the estimate is
-kept and its covariance is the sandwich
+device. Its variance is in their weights (nls/accelerometer.py), which count every interval as independent (with
+the hand's variance scaled by the peak of its spectrum); it is not: a hand sways at the frequencies it turns at. As
+for the room's field (nls/disturbance.py), the estimate is kept and its covariance is the sandwich
 
-    Cov = I^-1 + I^-1 Omega I^-1,   Omega = sum_{j, k} U_j rho(j - k) U_k^T - sum_j V_j V_j^T,
+    Cov = I^-1 (I + Omega) I^-1,   Omega = sum_{j, k} U_j rho(j - k) U_k^T - sum_j V_j V_j^T,
 
 U_j = Jt_j^T L_j, Jt_j the profiled Jacobian of interval j's accelerometer residual (its start node moved along
 with the calibration), L_j = w_j s_h(t_j) M C_i^m(t_j) how a unit of the hand's acceleration in frame i enters it
@@ -14,7 +14,9 @@ rho the hand's measured autocorrelation over intervals (`accelerometer.tapered_a
 frame i, of the local std s_h(t) measured (nls/accelerometer.py `hand_motion`); V_j is U_j with the std the
 weights hold, which I counts as independent already. At rest s_h is zero. The
 double sum is one product per frequency: Omega = Re sum_f S(f) F(f) F(f)^H / N, F the Fourier transform of U
-over the intervals and S that of rho, with N >= n + max lag so that no lag wraps around.
+over the intervals and S that of rho, with N >= n + max lag so that no lag wraps around. I + Omega is
+J^T W (white + hand) W J, positive semi-definite; where the weights hold more hand than measured the std comes out
+below I^-1.
 """
 from __future__ import annotations
 
@@ -29,14 +31,15 @@ from magyro.nls.reduction import Reduced
 CHUNK = 1024   # intervals per piece of the sensitivities
 
 
-def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, reduced: Reduced, info_inv: np.ndarray,
+def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, reduced: Reduced, information: np.ndarray,
                          hand_std_m_s2: np.ndarray, weights_hand_std_m_s2: np.ndarray,
                          correlation: np.ndarray) -> np.ndarray:
-    """I^-1 (M - I_hand) I^-1: what the hand's correlated acceleration adds to the corrections' covariance.
+    """I^-1 Omega I^-1: what the hand's correlated acceleration adds to the corrections' covariance.
     `hand_std_m_s2` (n_int,) is s_h per interval as measured, `weights_hand_std_m_s2` the one the weights hold (I
     counts it: it is taken out again), `correlation` rho at lags 0, 1, ... intervals."""
     if not np.any(hand_std_m_s2 > 0) and not np.any(weights_hand_std_m_s2 > 0):
-        return np.zeros_like(info_inv)
+        return np.zeros_like(information)
+    info_inv = np.linalg.inv(information)
     sensitivities = np.concatenate(list(hand_sensitivities(problem, x, p, reduced, np.ones(problem.n_int))))
     U = sensitivities * hand_std_m_s2[:, None, None]                                       # (n_int, n_theta, 3)
     counted = sensitivities * weights_hand_std_m_s2[:, None, None]
@@ -53,9 +56,10 @@ def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, re
         weights[-1] = 1.0
     omega = np.einsum("f,fac,fbc->ab", S * weights, F, F.conj()).real / size
     omega -= np.einsum("nac,nbc->ab", counted, counted)           # what I counts as independent
-    value, vector = np.linalg.eigh(omega)
-    omega = (vector * np.maximum(value, 0.0)) @ vector.T          # where the weights counted more hand than measured,
-    return info_inv @ omega @ info_inv                            # the std stays theirs: never below I^-1
+    total = information + omega                                   # J^T W (white + hand) W J: positive semi-definite,
+    value, vector = np.linalg.eigh(total)                         # but for rounding (the weights may count more hand
+    total = (vector * np.maximum(value, 0.0)) @ vector.T          # than measured: then the std is below I^-1)
+    return info_inv @ total @ info_inv - info_inv
 
 
 def hand_sensitivities(problem: JointProblem, x, p, reduced: Reduced, hand_std_m_s2: np.ndarray):

@@ -100,7 +100,7 @@ def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.nda
     excess = specific_force_excess(start, A, b.ravel(), K, eps.ravel(), lever.ravel())
     hand = hand_motion(excess, sol.acc_weight, start, solved_accelerometer_residuals(problem, r, sol.acc_weight))
     weights_hand = np.sqrt(np.maximum(1.0 / np.maximum(sol.acc_weight, 1e-300) ** 2 - white_variance(start), 0.0))
-    return hand_covariance_term(problem, sol.x, sol.p, reduced, np.linalg.inv(reduced.information), hand.hand_std_m_s2,
+    return hand_covariance_term(problem, sol.x, sol.p, reduced, reduced.information, hand.hand_std_m_s2,
                                 weights_hand * (sol.acc_weight > 0), hand.correlation)
 
 

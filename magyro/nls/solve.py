@@ -22,7 +22,7 @@ from magyro.nls.grid import STRIDES, Grid, build_grid, typical_segment_s
 from magyro.nls.method import NLS
 from magyro.options import Options
 from magyro.observability.gate import unexcited_directions
-from magyro.nls.accelerometer import accelerometer_start, hand_weights
+from magyro.nls.accelerometer import accelerometer_start, solved_hand_weights
 from magyro.nls.interval import N_GLOBAL, TIME_OFFSET_SCALE_S
 from magyro.nls.problem import JointProblem, Linearisation, evaluate
 from magyro.errors import InputError, ObservabilityError
@@ -226,7 +226,7 @@ def solved_accelerometer_residuals(problem: JointProblem, r: np.ndarray, weight:
 
 def accelerometer_reweighted(problem: JointProblem, lin: Linearisation, r: np.ndarray, weight: np.ndarray):
     """(the accelerometer's interval weights measured from the solved residuals r, whether they moved)."""
-    new = hand_weights(solved_accelerometer_residuals(problem, r, weight), lin.accelerometer)
+    new = solved_hand_weights(solved_accelerometer_residuals(problem, r, weight), lin.accelerometer)
     ok = (weight > 0) & (new > 0)
     moved = float(np.sqrt(np.mean(np.log(new[ok] / weight[ok]) ** 2))) if ok.any() else 0.0
     return new, moved > ACC_REWEIGHT_TOLERANCE
