@@ -54,11 +54,11 @@ def real_block(r: dict) -> str:
 
 
 def shortfall(records: list[dict]) -> str:
-    """The range of reported/actual and the largest |z| over the simulated problems (one line)."""
+    """The range of reported/actual and the largest |z| over the simulated problems (a clause)."""
     ratios = [r["reported"][k] / r["actual"][k] for r in records for k in range(len(r["names"]))]
     worst = max(max(r["max_abs_z"]) for r in records)
-    return (f"the reported std is then {min(ratios):.2f}-{max(ratios):.2f} of the actual spread (above), and a "
-            f"parameter can lie up to {worst:.1f} std from the truth")
+    return (f"the reported std is {min(ratios):.2f}-{max(ratios):.2f} of the actual spread (above; the largest |z| "
+            f"{worst:.1f})")
 
 
 def observe_block() -> str:
