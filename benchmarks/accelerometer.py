@@ -11,7 +11,9 @@ it (the median of 3 interleaved runs each, after one run that compiles and cache
 the truth in reported std, the actual spread over the seeds against the mean reported std (reported/actual), and
 the gyro's std with the accelerometer against without it on the same session, and the Cramer-Rao bound at seed 0's
 session (magyro.studies.crlb_accelerometer: the hand counted as noise of its known ensemble; the white-noise bound,
-the hand still, beside it) with std/CRLB, the actual spread over the seeds over it. `--out` writes the record
+the hand still, beside it) with std/CRLB, the actual spread over the seeds over it, and what the solve's weighting
+reaches with the same hand (`weighted`: not a bound, the sandwich of weights that count every interval as
+independent; std/wtd near 1 says the spread is the weighting's, not something else's). `--out` writes the record
 docs/accelerometer.md is rendered from (docs/make_accelerometer_numbers.py).
 """
 from __future__ import annotations
@@ -131,6 +133,7 @@ def sim(problem: str, seeds: int, jobs: int) -> dict:
             "gyro_std_ratio_median": np.median(ratio, axis=0).tolist(), "gyro_std_ratio_max": ratio.max(axis=0).tolist(),
             "crlb": bound.accelerometer_std.tolist(), "crlb_white": bound.white_accelerometer_std.tolist(),
             "std_over_crlb": (actual / bound.accelerometer_std).tolist(),
+            "weighted": bound.weighted_accelerometer_std.tolist(),
             "gyro_crlb": gcrlb.tolist(), "gyro_std_over_crlb": (gactual / gcrlb).tolist()}
 
 
@@ -145,11 +148,12 @@ def crlb(prob):
 def print_sim(r: dict) -> None:
     print(f"{r['problem']}: {r['seeds']} seeds; accelerometer")
     print(f"{'parameter':24s} {'mean err':>10s} {'actual':>10s} {'reported':>10s} {'rep/act':>8s} {'max|z|':>7s} "
-          f"{'CRLB':>10s} {'std/CRLB':>8s} {'CRLB white':>10s}")
+          f"{'CRLB':>10s} {'std/CRLB':>8s} {'CRLB white':>10s} {'weighted':>10s} {'std/wtd':>7s}")
     for k, name in enumerate(r["names"]):
         print(f"{name:24s} {r['mean_error'][k]:+10.2e} {r['actual'][k]:10.2e} {r['reported'][k]:10.2e} "
               f"{r['reported'][k] / r['actual'][k]:8.2f} {r['max_abs_z'][k]:7.2f} {r['crlb'][k]:10.2e} "
-              f"{r['std_over_crlb'][k]:8.2f} {r['crlb_white'][k]:10.2e}")
+              f"{r['std_over_crlb'][k]:8.2f} {r['crlb_white'][k]:10.2e} {r['weighted'][k]:10.2e} "
+              f"{r['actual'][k] / r['weighted'][k]:7.2f}")
     ratio, roa = np.array(r["gyro_std_ratio_max"]), np.array(r["gyro_reported_over_actual"])
     print(f"gyro with the accelerometer: max |z| {max(r['gyro_max_abs_z']):.2f}; std with/without: median "
           f"{np.median(r['gyro_std_ratio_median']):.2f}, max {ratio.max():.2f}; reported/actual {roa.min():.2f}-{roa.max():.2f}")

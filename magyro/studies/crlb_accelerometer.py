@@ -22,7 +22,9 @@ and attitude states), Sigma identity for the whitened magnetometer, gyro and res
 means (unweighted, m/s^2), diag(sigma_w^2 sum_j c_j^2) + Sigma_hand, dense. Everything is dense: n_x = n_theta +
 3 n_int and 3 n_int accelerometer rows, fine for the simulated problems (100 s, about 800 intervals: matrices of
 2400-3000 squared) and not meant for hour-long recordings. The white-noise bound (the hand still, Sigma_hand = 0)
-is given beside it (`AccelerometerBound.white`).
+is given beside it (`AccelerometerBound.white`), and so is what the solve's own weighting reaches with the same
+hand (`independent_weights_covariance`: not a bound, the sandwich of the weights that count each interval as
+independent).
 
 What the bound means: it is the Cramer-Rao bound with the hand taken as Gaussian of its ensemble's covariance, i.e.
 the covariance of the best linear (generalised least squares) estimator that knows that covariance. The real sway is
@@ -60,7 +62,8 @@ from magyro.studies.scenario import Scenario
 
 HAND_DRAWS = 100          # draws of the hand alone that make its ensemble's covariance: the bound moves < 2 % from 25 to 400 (paper-table1-acc)
 HAND_SEED0 = 1_000_000    # their seeds: hand_translation(problem, HAND_SEED0 + d), apart from any study's noise seeds
-ACC_ROWS = ([f"K_a[{i},{j}]" for i, j in [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]]
+UPPER = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+ACC_ROWS = ([f"K_a[{i},{j}]" for i, j in UPPER]
             + [f"bias_m_s2[{i}]" for i in range(3)] + [f"acc_misalignment_deg[{i}]" for i in range(3)])
 
 
@@ -76,6 +79,7 @@ class AccelerometerBound:
     white_accelerometer_std: np.ndarray
     covariance: np.ndarray          # the reported vector's (result.REPORTED), with the hand
     white_covariance: np.ndarray
+    weighted_accelerometer_std: np.ndarray   # not a bound: the solve's weighting's spread (`independent_weights_covariance`)
 
 
 def truth_accelerometer_problem(problem: Scenario, session: Session, options: Options, nls: NLS):
@@ -194,16 +198,33 @@ def accelerometer_cramer_rao(problem: Scenario, session: Session, options: Optio
     hand = hand_covariance(problem, start, draws)[np.ix_(used, used)]
     g = jp.globals_of(p_unit)
     C0, _ = qr_split(lin.K0)
-    out = []
-    for Sigma in (np.diag(white) + hand, np.diag(white)):
-        Jw = np.linalg.solve(np.linalg.cholesky(Sigma), J)
-        cov_theta = marginal_covariance(F0 + Jw.T @ Jw, jp.n_theta)
+
+    def reported(cov_theta):
         if not np.all(np.isfinite(cov_theta)):
-            out.append((np.full((N_REPORTED, N_REPORTED), np.inf), np.full(12, np.inf), cov_theta))
-            continue
-        cov = propagate(jp, np.zeros(jp.n_theta), g, cov_theta, C0)
+            return np.full((N_REPORTED, N_REPORTED), np.inf), np.full(12, np.inf)
         acc = accelerometer_result(jp, np.zeros(jp.n_theta), g, cov_theta)
-        out.append((cov, np.concatenate([[acc.std_K_a[i, j] for i, j in [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]],
-                                         acc.std_bias_m_s2, acc.std_misalignment_deg]), cov_theta))
-    (cov_h, acc_h, _), (cov_w, acc_w, _) = out
-    return AccelerometerBound(std_from_covariance(cov_h), acc_h, std_from_covariance(cov_w), acc_w, cov_h, cov_w)
+        return (propagate(jp, np.zeros(jp.n_theta), g, cov_theta, C0),
+                np.concatenate([[acc.std_K_a[i, j] for i, j in UPPER], acc.std_bias_m_s2, acc.std_misalignment_deg]))
+
+    def bound(Sigma):
+        Jw = np.linalg.solve(np.linalg.cholesky(Sigma), J)
+        return reported(marginal_covariance(F0 + Jw.T @ Jw, jp.n_theta))
+
+    (cov_h, acc_h), (cov_w, acc_w) = bound(np.diag(white) + hand), bound(np.diag(white))
+    _, acc_weighted = reported(independent_weights_covariance(F0, J, white, hand, jp.n_theta))
+    return AccelerometerBound(std_from_covariance(cov_h), acc_h, std_from_covariance(cov_w), acc_w, cov_h, cov_w,
+                              acc_weighted)
+
+
+def independent_weights_covariance(F0: np.ndarray, J: np.ndarray, white: np.ndarray, hand: np.ndarray,
+                                   n_theta: int) -> np.ndarray:
+    """The corrections' covariance of the least squares that weights each interval mean by 1 / (white + the hand's
+    variance there), as the solve does (nls/accelerometer.py `hand_weights`, the hand's size taken alike on the three
+    axes), when the hand's acceleration has the covariance `hand`: the sandwich F_w^-1 (F0 + J^T W Sigma W J) F_w^-1,
+    F_w = F0 + J^T W J. Not a bound: what the solve's weighting gives at best (its weights from the true hand, its
+    std from the true correlation), the spread to compare its actual one and its reported std with."""
+    own = np.repeat(np.diag(hand).reshape(-1, 3).mean(axis=1), 3)
+    W = 1.0 / (white + own)
+    JW = J * W[:, None]
+    F_inv = np.linalg.inv(F0 + J.T @ JW)
+    return (F_inv @ (F0 + JW.T @ (np.diag(white) + hand) @ JW) @ F_inv)[:n_theta, :n_theta]
