@@ -9,7 +9,11 @@ the gyro's 12), the gyro's std with the accelerometer against without, and the s
 it (the median of 3 interleaved runs each, after one run that compiles and caches the kernels).
 `sim`: per noise seed (each seed draws another sway of the hand) the accelerometer's and the gyro's errors against
 the truth in reported std, the actual spread over the seeds against the mean reported std (reported/actual), and
-the gyro's std with the accelerometer against without it on the same session. `--out` writes the record
+the gyro's std with the accelerometer against without it on the same session, and the Cramer-Rao bound at seed 0's
+session (magyro.studies.crlb_accelerometer: the hand counted as noise of its known ensemble; the white-noise bound,
+the hand still, beside it) with std/CRLB, the actual spread over the seeds over it, and what the solve's weighting
+reaches with the same hand (`weighted`: not a bound, the sandwich of weights that count every interval as
+independent; std/wtd near 1 says the spread is the weighting's, not something else's). `--out` writes the record
 docs/accelerometer.md is rendered from (docs/make_accelerometer_numbers.py).
 """
 from __future__ import annotations
@@ -18,6 +22,7 @@ import argparse
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -115,6 +120,9 @@ def sim(problem: str, seeds: int, jobs: int) -> dict:
     gest = np.array([[gyro_values(c, truth_gyro.C_b_m)[k] for k in tv] for c, _, _ in runs])
     gstd = np.array([[gyro_stds(c)[k] for k in tv] for c, _, _ in runs])
     ratio = np.array([[gyro_stds(c)[k] / gyro_stds(b)[k] for k in tv] for c, b, _ in runs])
+    bound = crlb(prob)
+    actual, gactual = est.std(axis=0, ddof=1), gest.std(axis=0, ddof=1)
+    gcrlb = np.array([gyro_stds(SimpleNamespace(std=bound.std))[k] for k in tv])
     return {"problem": problem, "seeds": seeds, "names": ACC_NAMES,
             "mean_error": (est - truth_acc).mean(axis=0).tolist(), "actual": est.std(axis=0, ddof=1).tolist(),
             "reported": std.mean(axis=0).tolist(),
@@ -122,18 +130,35 @@ def sim(problem: str, seeds: int, jobs: int) -> dict:
             "max_abs_error": np.max(np.abs(est - truth_acc), axis=0).tolist(),
             "gyro_names": list(tv), "gyro_max_abs_z": np.max(np.abs((gest - np.array(list(tv.values()))) / gstd), axis=0).tolist(),
             "gyro_reported_over_actual": (gstd.mean(axis=0) / gest.std(axis=0, ddof=1)).tolist(),
-            "gyro_std_ratio_median": np.median(ratio, axis=0).tolist(), "gyro_std_ratio_max": ratio.max(axis=0).tolist()}
+            "gyro_std_ratio_median": np.median(ratio, axis=0).tolist(), "gyro_std_ratio_max": ratio.max(axis=0).tolist(),
+            "crlb": bound.accelerometer_std.tolist(), "crlb_white": bound.white_accelerometer_std.tolist(),
+            "std_over_crlb": (actual / bound.accelerometer_std).tolist(),
+            "weighted": bound.weighted_accelerometer_std.tolist(),
+            "gyro_crlb": gcrlb.tolist(), "gyro_std_over_crlb": (gactual / gcrlb).tolist()}
+
+
+def crlb(prob):
+    """The Cramer-Rao bound at seed 0's session (`crlb_accelerometer.accelerometer_cramer_rao`)."""
+    from magyro.studies.crlb_accelerometer import accelerometer_cramer_rao
+    from magyro.studies.simulate import simulate
+
+    return accelerometer_cramer_rao(prob, simulate(prob, 0)[0], Options(accelerometer=True))
 
 
 def print_sim(r: dict) -> None:
     print(f"{r['problem']}: {r['seeds']} seeds; accelerometer")
-    print(f"{'parameter':24s} {'mean err':>10s} {'actual':>10s} {'reported':>10s} {'rep/act':>8s} {'max|z|':>7s}")
+    print(f"{'parameter':24s} {'mean err':>10s} {'actual':>10s} {'reported':>10s} {'rep/act':>8s} {'max|z|':>7s} "
+          f"{'CRLB':>10s} {'std/CRLB':>8s} {'CRLB white':>10s} {'weighted':>10s} {'std/wtd':>7s}")
     for k, name in enumerate(r["names"]):
         print(f"{name:24s} {r['mean_error'][k]:+10.2e} {r['actual'][k]:10.2e} {r['reported'][k]:10.2e} "
-              f"{r['reported'][k] / r['actual'][k]:8.2f} {r['max_abs_z'][k]:7.2f}")
+              f"{r['reported'][k] / r['actual'][k]:8.2f} {r['max_abs_z'][k]:7.2f} {r['crlb'][k]:10.2e} "
+              f"{r['std_over_crlb'][k]:8.2f} {r['crlb_white'][k]:10.2e} {r['weighted'][k]:10.2e} "
+              f"{r['actual'][k] / r['weighted'][k]:7.2f}")
     ratio, roa = np.array(r["gyro_std_ratio_max"]), np.array(r["gyro_reported_over_actual"])
     print(f"gyro with the accelerometer: max |z| {max(r['gyro_max_abs_z']):.2f}; std with/without: median "
           f"{np.median(r['gyro_std_ratio_median']):.2f}, max {ratio.max():.2f}; reported/actual {roa.min():.2f}-{roa.max():.2f}")
+    print("gyro std/CRLB (with the accelerometer): " + " ".join(
+        f"{n}={v:.2f}" for n, v in zip(r["gyro_names"], r["gyro_std_over_crlb"])))
 
 
 def main(argv=None) -> None:

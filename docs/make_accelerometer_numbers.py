@@ -26,16 +26,23 @@ REAL_RECORD = "accelerometer-broad-02"
 
 def sim_table(r: dict) -> str:
     """One simulated problem's table: each accelerometer parameter's error, spread and std, and the gyro's summary."""
+    bound = "crlb" in r     # records since the accelerometer's Cramer-Rao bound (magyro.studies.crlb_accelerometer)
     rows = [[n, fmt(r["mean_error"][k]), fmt(r["actual"][k]), fmt(r["reported"][k]),
-             f"{r['reported'][k] / r['actual'][k]:.2f}", f"{r['max_abs_z'][k]:.1f}"] for k, n in enumerate(r["names"])]
+             f"{r['reported'][k] / r['actual'][k]:.2f}", f"{r['max_abs_z'][k]:.1f}"]
+            + ([fmt(r["crlb"][k]), f"{r['std_over_crlb'][k]:.2f}", fmt(r["weighted"][k])] if bound else [])
+            for k, n in enumerate(r["names"])]
     roa = np.array(r["gyro_reported_over_actual"])
     head = (f"{r['problem']}, {r['seeds']} noise seeds, each with another sway of the hand "
             f"(`{r['provenance']['command']}`, {r['provenance']['date']}, {r['provenance']['commit']}):\n\n")
     tail = (f"\n\nThe gyro beside it: largest |error|/std {max(r['gyro_max_abs_z']):.1f}; its std with the accelerometer "
             f"against without, median {np.median(r['gyro_std_ratio_median']):.2f}, largest "
             f"{max(r['gyro_std_ratio_max']):.2f}; reported/actual {roa.min():.2f}-{roa.max():.2f}.")
-    return head + table(["parameter", "mean error", "actual std", "reported std", "reported/actual", "max abs z"],
-                        rows, left=(0,)) + tail
+    header = ["parameter", "mean error", "actual std", "reported std", "reported/actual", "max abs z"]
+    if bound:
+        header += ["CRLB", "actual/CRLB", "independent weights"]
+        tail += (" CRLB: the Cramer-Rao bound with the hand as noise of its known ensemble (at seed 0's session); "
+                 "independent weights: what the solve's weighting reaches with the same hand (not a bound).")
+    return head + table(header, rows, left=(0,)) + tail
 
 
 def real_block(r: dict) -> str:

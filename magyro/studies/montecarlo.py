@@ -16,6 +16,11 @@ from seed to seed that changes it by far less than the sampling error of a
 Jacobian of dcm2eul (`crlb.euler_std_deg`); the other entries are
 `crlb.cramer_rao_std` as is.
 
+A problem with an [accelerometer] is solved with it (Options(accelerometer=True) unless options are given; the
+EKF without it, which it cannot calibrate), and its table gains the accelerometer's 12 rows. Their bound, and the
+gyro's and magnetometer's then, is `crlb_accelerometer.accelerometer_cramer_rao`: the hand's acceleration counted
+as noise of its known ensemble; the white-noise bound (the hand still) is kept beside it (`crlb_white`).
+
 Failed runs (any exception: unusable input, observability gate, solver
 failure, a crashed worker) are kept with their seed and message and counted;
 the table is built from the successful runs.
@@ -23,6 +28,7 @@ the table is built from the successful runs.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import datetime as _dt
 import os
 import time
@@ -40,9 +46,11 @@ from magyro.nls.method import NLS
 from magyro.options import Options
 from magyro.result.reported import std_from_covariance
 from magyro.studies.crlb import cramer_rao_covariance, euler_std_deg
+from magyro.studies.crlb_accelerometer import ACC_ROWS, accelerometer_cramer_rao
 from magyro.studies.montecarlo_output import MethodResult, MonteCarloResult
 from magyro.studies.montecarlo_table import PAPER_TABLE1_MEAN, PAPER_TABLE1_STD, matches_paper, table_rows
-from magyro.studies.montecarlo_values import Outcome, estimate_values, parameters, std_values, truth_values
+from magyro.studies.montecarlo_values import (Outcome, accelerometer_std_values, estimate_values, parameters,
+                                              std_values, truth_values)
 from magyro.studies.scenario import Scenario
 from magyro.studies.simulate import simulate
 
@@ -71,16 +79,42 @@ def parse_methods(method: str | Sequence[str]) -> list[str]:
 
 
 def crlb_task(problem: Scenario, seed: int, options: Options, nls: NLS) -> dict:
-    """The CRLB rows at `seed`'s session, or the reason there is none."""
+    """The CRLB rows at `seed`'s session (with the accelerometer: with the hand, and the white-noise bound as
+    "white"), or the reason there is none."""
     t0 = time.perf_counter()
     try:
         session, _ = simulate(problem, seed)
+        if options.accelerometer and problem.accelerometer is not None:
+            bound = accelerometer_cramer_rao(problem, session, options, nls)
+            values = crlb_values(problem, bound.covariance, options)
+            values.update(zip(ACC_ROWS, map(float, bound.accelerometer_std)))
+            white = crlb_values(problem, bound.white_covariance, options)
+            white.update(zip(ACC_ROWS, map(float, bound.white_accelerometer_std)))
+            return {"values": values, "white": white, "error": None, "seconds": time.perf_counter() - t0}
         cov = cramer_rao_covariance(problem, session, options, nls)
-        values = std_values(std_from_covariance(cov), options.estimate_time_offset)
-        values.update({f"euler_deg[{i}]": float(v) for i, v in enumerate(euler_std_deg(problem.C_b_m, cov))})
-        return {"values": values, "error": None, "seconds": time.perf_counter() - t0}
+        return {"values": crlb_values(problem, cov, options), "error": None, "seconds": time.perf_counter() - t0}
     except Exception as exc:  # the table is still useful without a CRLB
         return {"values": {}, "error": one_line(exc, limit=None), "seconds": time.perf_counter() - t0}
+
+
+def crlb_values(problem: Scenario, cov: np.ndarray, options: Options) -> dict:
+    """The rows of a reported vector's CRLB covariance, the Euler angles' through dcm2eul."""
+    values = std_values(std_from_covariance(cov), options.estimate_time_offset)
+    values.update({f"euler_deg[{i}]": float(v) for i, v in enumerate(euler_std_deg(problem.C_b_m, cov))})
+    return values
+
+
+def study_options(problem: Scenario, options: Options | None) -> Options:
+    """The options a study solves with: as given, else the accelerometer calibrated when the problem has one."""
+    if options is not None:
+        return options
+    acc = problem.accelerometer
+    return Options() if acc is None else Options(accelerometer=True, gravity_m_s2=acc.g_m_s2)
+
+
+def method_options(method, options: Options) -> Options:
+    """The EKF does not calibrate the accelerometer: it solves the same session without it."""
+    return dataclasses.replace(options, accelerometer=False) if isinstance(method, EKF) else options
 
 
 def run_seed(problem: Scenario, seed: int, methods: dict, options: Options) -> list[Outcome]:
@@ -97,9 +131,10 @@ def run_seed(problem: Scenario, seed: int, methods: dict, options: Options) -> l
     for name, method in methods.items():
         t0, c0 = time.perf_counter(), time.process_time()
         try:
-            cal = run_method(method, session, options)
+            cal = run_method(method, session, method_options(method, options))
             est = estimate_values(cal, problem)
             rep = std_values(cal.std, "time_offset_s" in est)
+            rep.update(accelerometer_std_values(getattr(cal, "accelerometer", None)))
             solver = {k: getattr(cal.solver, k) for k in ("method", "status", "iterations", "seconds")}
             out.append(Outcome(seed, name, True, time.perf_counter() - t0, est, rep, solver))
         except Exception as exc:
@@ -121,7 +156,7 @@ def study_task(kind: str, problem: Scenario, seed: int, methods: dict, options: 
 def _run_on(executor, problem: Scenario, seeds: list[int], methods: dict, options: Options, nls: NLS,
             finished: Callable[[int, list[Outcome]], None]) -> dict:
     """The CRLB task and every seed on `executor` (`finished` called as each seed completes); the CRLB's result."""
-    crlb = {"values": {}, "error": None}
+    crlb = {"values": {}, "white": {}, "error": None}
 
     def done(item: tuple, result, error) -> None:
         kind, seed = item
@@ -161,7 +196,7 @@ def run_montecarlo(problem: Scenario, runs: int, jobs: int = 1, method: str | Se
         raise InputError(f"--seed0 must be non-negative, got {seed0}")
     methods = {m: METHODS[m] for m in parse_methods(method)}
     nls = METHODS["nls"]
-    options = options or Options()
+    options = study_options(problem, options)
     seeds = list(range(seed0, seed0 + runs))
     t_start = time.perf_counter()
     by_seed: dict[int, list[Outcome]] = {}
@@ -182,12 +217,13 @@ def run_montecarlo(problem: Scenario, runs: int, jobs: int = 1, method: str | Se
     for m in methods:
         outcomes = [o for seed in seeds for o in by_seed[seed] if o.method == m]
         with_tau = any("time_offset_s" in o.estimate for o in outcomes if o.ok)
-        rows = table_rows(parameters(problem.mag_unit, with_tau), truth, outcomes, crlb["values"],
+        with_acc = any("K_a[0,0]" in o.estimate for o in outcomes if o.ok)
+        rows = table_rows(parameters(problem.mag_unit, with_tau, with_acc), truth, outcomes, crlb["values"],
                           PAPER_TABLE1_STD if paper else None, PAPER_TABLE1_MEAN if paper else None)
         results[m] = MethodResult(m, rows, outcomes)
     return MonteCarloResult(
         problem=problem.name, problem_source=problem.source_path, runs=runs, seed0=seed0, jobs=jobs,
-        methods=results, truth=truth, crlb=crlb["values"], crlb_error=crlb["error"],
+        methods=results, truth=truth, crlb=crlb["values"], crlb_error=crlb["error"], crlb_white=crlb.get("white") or {},
         paper_applies=paper, wall_s=time.perf_counter() - t_start, start_method=used_start_method,
         created=_dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat(), mag_unit=problem.mag_unit,
     )

@@ -4,12 +4,13 @@ from __future__ import annotations
 import csv
 import io
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from magyro import __version__
 from magyro.studies.montecarlo_table import (
+    ACC_GROUPS,
     PAPER_TABLE1_MEAN,
     PAPER_TABLE1_STD,
     Row,
@@ -49,6 +50,14 @@ class MethodResult:
     def targets(self) -> dict:
         return target_checks(self.rows)
 
+    @property
+    def has_accelerometer(self) -> bool:
+        return any(r.group in ACC_GROUPS for r in self.rows)
+
+    def accelerometer_targets(self) -> dict:
+        """The same targets on the accelerometer's 12 (issue 26), when they are in the table."""
+        return target_checks(self.rows, ACC_GROUPS)
+
     def to_dict(self) -> dict:
         solve_s = [o.seconds for o in self.outcomes if o.ok]
         cpu_s = [o.cpu_seconds for o in self.outcomes if o.ok]
@@ -61,6 +70,7 @@ class MethodResult:
             "solve_cpu_seconds_mean": json_number(float(np.mean(cpu_s)) if cpu_s else None),
             "parameters": [r.to_dict() for r in self.rows],
             "targets": self.targets(),
+            **({"accelerometer_targets": self.accelerometer_targets()} if self.has_accelerometer else {}),
             "runs": [o.to_dict() for o in self.outcomes],
         }
 
@@ -83,6 +93,7 @@ class MonteCarloResult:
     start_method: str | None
     created: str
     mag_unit: str
+    crlb_white: dict = field(default_factory=dict)   # with an accelerometer: the bound with the hand still
 
     @property
     def seeds(self) -> list[int]:
@@ -118,7 +129,12 @@ class MonteCarloResult:
             "crlb": {"seed": self.seed0, "error": self.crlb_error, "std": json_dict(self.crlb),
                      "note": "Fisher information of the joint least squares at the true parameters and attitude "
                              "(crlb.cramer_rao_std), at the session of the first seed; the noise realisation enters "
-                             "only through the gyro samples in the Jacobian. Euler-angle rows: J cov(d) J^T."},
+                             "only through the gyro samples in the Jacobian. Euler-angle rows: J cov(d) J^T.",
+                     **({"white_std": json_dict(self.crlb_white),
+                         "accelerometer_note": "with an accelerometer (crlb_accelerometer.accelerometer_cramer_rao): "
+                                               "the hand's acceleration counted as noise of its known ensemble, "
+                                               "dense over the interval means; white_std: the hand still"}
+                        if self.crlb_white else {})},
             "misalignment_definition": "misalignment_deg = d = Log(C_b_m_est^T C_b_m_true) in deg "
                                        "(C_true = C_est Exp(d), result.misalignment_vector(C_est, C_true)); truth 0",
             "paper_table1": {"applies": self.paper_applies, "std": PAPER_TABLE1_STD if self.paper_applies else None,
@@ -154,6 +170,8 @@ class MonteCarloResult:
                 out.append(f"with {m.succeeded} runs an efficient unbiased estimator's std/CRLB lies in [{lo:.2f}, {hi:.2f}] "
                            f"and its |err/std| below {err_over_std_bound(m.succeeded):.2f} (each 95 %)")
             out.extend(targets_text(m.targets()))
+            if m.has_accelerometer:
+                out.extend(targets_text(m.accelerometer_targets(), "accelerometer"))
             if self.paper_applies:
                 out.append(paper_summary(m.rows))
             for o in m.failed:
@@ -164,7 +182,11 @@ class MonteCarloResult:
         if self.crlb_error:
             out.append(f"no CRLB: {self.crlb_error}")
         else:
-            out.append(f"CRLB at truth, computed once at seed {self.seed0}'s session.")
+            out.append(f"CRLB at truth, computed once at seed {self.seed0}'s session"
+                       + (", the hand's acceleration counted as noise of its known ensemble (with the hand still it "
+                          "would be " + ", ".join(f"{k} {v:.3g}" for k, v in self.crlb_white.items()
+                                                  if k.startswith(("K_a", "bias_m_s2", "acc_"))) + ")."
+                          if self.crlb_white else "."))
         out.append(f"{self.wall_s:.1f} s wall, {self.jobs} job(s)")
         return "\n".join(out)
 

@@ -24,6 +24,7 @@ from magyro.studies.montecarlo_values import Outcome, Parameter, is_missing, jso
 from magyro.studies.scenario import Scenario
 
 GYRO_GROUPS = ("K_g", "bias_deg_s", "misalignment_deg")
+ACC_GROUPS = ("K_a", "bias_m_s2", "acc_misalignment_deg")
 
 # Targets of issue 4 for the gyro parameters (K_g upper 6, bias 3, misalignment d 3).
 TARGET_STD_OVER_CRLB = 1.10
@@ -147,12 +148,13 @@ def err_over_std_bound(n: int, level: float = 0.95) -> float:
     return float(t.ppf(0.5 + level / 2.0, n - 1) / math.sqrt(n))
 
 
-def target_checks(rows: Sequence[Row]) -> dict:
-    """The issue's targets on the gyro parameters (K_g 6, bias 3, misalignment d 3). Each says whether its runs
+def target_checks(rows: Sequence[Row], groups: Sequence[str] = GYRO_GROUPS) -> dict:
+    """The issue's targets on the gyro parameters (K_g 6, bias 3, misalignment d 3), or on the rows of other `groups`
+    (ACC_GROUPS: the accelerometer's 12, issue 26; the same limits). Each says whether its runs
     can resolve it: "chance" is how far an efficient unbiased estimator's value strays by sampling alone (95 %);
     a target inside that reach is not resolvable with so few runs: missing it is a FAIL only for values beyond
     the reach of chance (beyond_chance)."""
-    gyro = [r for r in rows if r.group in GYRO_GROUPS]
+    gyro = [r for r in rows if r.group in groups]
     lo, hi = TARGET_REPORTED_OVER_ACTUAL
     n = min((r.n for r in gyro), default=0)
     ratio_lo, ratio_hi = std_ratio_interval(n)
@@ -210,12 +212,12 @@ def format_rows(rows: Sequence[Row], with_paper: bool) -> str:
     return "\n".join(text)
 
 
-def targets_text(targets: dict) -> list[str]:
-    """One line per target of `target_checks`."""
+def targets_text(targets: dict, label: str = "gyro") -> list[str]:
+    """One line per target of `target_checks` (`label`: whose parameters, "gyro" or "accelerometer")."""
     out = []
     for name, t in targets.items():
         if t["worst"] is None:
-            out.append(f"target gyro {name} {t['target']}: n/a (fewer than 2 successful runs)")
+            out.append(f"target {label} {name} {t['target']}: n/a (fewer than 2 successful runs)")
             continue
         if t["pass"]:
             verdict = "PASS"
@@ -226,7 +228,7 @@ def targets_text(targets: dict) -> list[str]:
                        f"chance; off in {', '.join(t['failing'])})")
         else:
             verdict = "FAIL (" + ", ".join(t["failing"]) + ")"
-        out.append(f"target gyro {name} {t['target']}: {verdict}; worst {_fmt(t['worst'], '.3f')}")
+        out.append(f"target {label} {name} {t['target']}: {verdict}; worst {_fmt(t['worst'], '.3f')}")
     return out
 
 

@@ -12,6 +12,9 @@ Parameters, named after the calibration JSON (indices 0-based, as in its lists):
                           not report an Euler std, so rep/act is empty there (3)
     R[i,j], h[i]          magnetometer soft iron (upper triangle, 6) and hard iron (3)
     time_offset_s         magnetometer lag, when the method estimates it
+    K_a[i,j], bias_m_s2[i], acc_misalignment_deg[i]
+                          the accelerometer's 12 (a problem with an [accelerometer], solved with it): K_a's upper
+                          triangle, eps_a in m/s^2, and d with C_b_a(true) = C_b_a(est) Exp(d) in deg, truth 0
 
 Every value is a plain float keyed by its row name: the truth, one run's
 estimates and reported stds (`Outcome`), the CRLB.
@@ -38,8 +41,8 @@ class Parameter:
     unit: str
 
 
-def parameters(mag_unit: str, with_time_offset: bool) -> list[Parameter]:
-    """The table's rows in order."""
+def parameters(mag_unit: str, with_time_offset: bool, accelerometer: bool = False) -> list[Parameter]:
+    """The table's rows in order (the accelerometer's 12 last, when it is calibrated)."""
     rows = [Parameter(f"K_g[{i},{j}]", "K_g", "-") for i, j in UPPER]
     rows += [Parameter(f"bias_deg_s[{i}]", "bias_deg_s", "deg/s") for i in range(3)]
     rows += [Parameter(f"misalignment_deg[{i}]", "misalignment_deg", "deg") for i in range(3)]
@@ -48,7 +51,19 @@ def parameters(mag_unit: str, with_time_offset: bool) -> list[Parameter]:
     rows += [Parameter(f"h[{i}]", "h", mag_unit) for i in range(3)]
     if with_time_offset:
         rows.append(Parameter("time_offset_s", "time_offset_s", "s"))
+    if accelerometer:
+        rows += [Parameter(f"K_a[{i},{j}]", "K_a", "-") for i, j in UPPER]
+        rows += [Parameter(f"bias_m_s2[{i}]", "bias_m_s2", "m/s^2") for i in range(3)]
+        rows += [Parameter(f"acc_misalignment_deg[{i}]", "acc_misalignment_deg", "deg") for i in range(3)]
     return rows
+
+
+def accelerometer_rows(K_a, bias_m_s2, misalignment_deg) -> dict[str, float]:
+    """The accelerometer's 12 rows (K_a upper triangle, bias in m/s^2, misalignment d in deg)."""
+    out = {f"K_a[{i},{j}]": float(np.asarray(K_a)[i, j]) for i, j in UPPER}
+    out.update({f"bias_m_s2[{i}]": float(v) for i, v in enumerate(bias_m_s2)})
+    out.update({f"acc_misalignment_deg[{i}]": float(v) for i, v in enumerate(misalignment_deg)})
+    return out
 
 
 def _flatten(K_g, bias_deg_s, misalignment_deg, euler_deg, R, h, time_offset_s=None) -> dict[str, float]:
@@ -72,8 +87,11 @@ def _flatten(K_g, bias_deg_s, misalignment_deg, euler_deg, R, h, time_offset_s=N
 
 def truth_values(problem: Scenario) -> dict[str, float]:
     """The true value of every row; the misalignment error d is 0 at truth."""
-    return _flatten(problem.K_g, problem.gyro_bias_deg_s, np.zeros(3), so3.dcm_to_euler(problem.C_b_m),
-                    problem.R, problem.hard_iron, problem.mag_time_offset_s)
+    out = _flatten(problem.K_g, problem.gyro_bias_deg_s, np.zeros(3), so3.dcm_to_euler(problem.C_b_m),
+                   problem.R, problem.hard_iron, problem.mag_time_offset_s)
+    if problem.accelerometer is not None:
+        out.update(accelerometer_rows(problem.accelerometer.K_a, problem.accelerometer.bias_m_s2, np.zeros(3)))
+    return out
 
 
 def estimate_values(cal, problem: Scenario) -> dict[str, float]:
@@ -87,7 +105,17 @@ def estimate_values(cal, problem: Scenario) -> dict[str, float]:
     e_true = so3.dcm_to_euler(C_true)
     e = e_true + (so3.dcm_to_euler(np.asarray(cal.C_b_m)) - e_true + 180.0) % 360.0 - 180.0
     tau = cal.time_offset_s if getattr(cal, "time_offset_estimated", False) else None
-    return _flatten(cal.K_g, np.rad2deg(np.asarray(cal.bias_rad_s)), d_deg, e, cal.R, cal.h, tau)
+    out = _flatten(cal.K_g, np.rad2deg(np.asarray(cal.bias_rad_s)), d_deg, e, cal.R, cal.h, tau)
+    acc = getattr(cal, "accelerometer", None)
+    if acc is not None and problem.accelerometer is not None:
+        d_acc = np.rad2deg(misalignment_vector(np.asarray(acc.C_b_a), problem.accelerometer.C_b_a))
+        out.update(accelerometer_rows(acc.K_a, acc.bias_m_s2, d_acc))
+    return out
+
+
+def accelerometer_std_values(acc) -> dict[str, float]:
+    """A calibration's accelerometer std as rows (none without an accelerometer)."""
+    return {} if acc is None else accelerometer_rows(acc.std_K_a, acc.std_bias_m_s2, acc.std_misalignment_deg)
 
 
 def std_values(std: Std, time_offset: bool) -> dict[str, float]:
