@@ -24,7 +24,7 @@ from magyro.options import Options
 from magyro.observability.gate import unexcited_directions
 from magyro.nls.accelerometer import accelerometer_start, hand_weights
 from magyro.nls.interval import N_GLOBAL, TIME_OFFSET_SCALE_S
-from magyro.nls.problem import JointProblem, Linearisation, evaluate
+from magyro.nls.problem import JointProblem, Linearisation
 from magyro.errors import InputError, ObservabilityError
 from magyro.result.reported import mirror_is_credible, qr_split
 from magyro.session import HOLE_FACTOR, Session, hole_steps, runs_of_true
@@ -196,7 +196,7 @@ def magnetometer_noise_factor(problem: JointProblem, residuals: np.ndarray) -> f
 def residual_matrix(problem: JointProblem, x, p) -> np.ndarray:
     """Whitened residuals, one row per interval: the magnetometer samples, then the gyro mismatch (then the hard
     iron's walk step, when it moves)."""
-    return evaluate(problem.residual_function, x, p)[0].reshape(problem.n_int, problem.n_res_per_interval)
+    return problem.residual_values(x, p).reshape(problem.n_int, problem.n_res_per_interval)
 
 
 def magnetometer_residuals(r: np.ndarray, stride: int) -> np.ndarray:
