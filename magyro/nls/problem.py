@@ -44,7 +44,7 @@ import numpy as np
 
 from magyro import so3
 from magyro.nls.grid import Grid, gyro_at_mag_midpoints
-from magyro.nls.on_numpy import KeptHessian, MapOnNumpy, OnNumpy, half_sum_of_squares
+from magyro.nls.on_numpy import KeptHessian, MapOnNumpy, OnNumpy, half_sum_of_squares, node_columns_in
 from magyro.nls.interval import (ACC_GLOBAL_LAYOUT, GLOBAL_LAYOUT, N_ACC_THETA, N_GLOBAL, NO_HUBER,
                                  accelerometer_jacobian, data_layout, global_size, kernel_key, kernel_set, node_size,
                                  unpack_accelerometer, unpack_globals)
@@ -173,7 +173,7 @@ class JointProblem:
     @cached_property
     def _hessian_parts(self) -> ca.Function:
         """One interval's Gauss-Newton parts, densified: triu(J_theta^T J_theta) and its two nodes' columns in
-        compressed-column order (see `assemble_hessian`)."""
+        compressed-column order (see `on_numpy.node_columns_in`)."""
         k = self.gn_kernel
         inputs = [ca.MX.sym(k.name_in(i), k.sparsity_in(i)) for i in range(k.n_in())]
         return ca.Function("interval_hessian_parts", inputs, [ca.densify(v) for v in k(*inputs)[1:]])
@@ -194,25 +194,11 @@ class JointProblem:
         copies the parameters into a work vector (68 MB each)."""
         return {"residuals": MapOnNumpy(self, self.residual_kernel),
                 "gradient": MapOnNumpy(self, self.gradient_kernel, summed=(0, 1)),
-                "gauss_newton": MapOnNumpy(self, self._hessian_parts, summed=(0,))}
+                "gauss_newton": MapOnNumpy(self, self._hessian_parts, summed=(0,), pieces=True)}
 
     @cached_property
     def hessian_pattern(self) -> ca.Sparsity:
         return hessian_sparsity(self.n_int, self.n_theta, self.B)
-
-    def assemble_hessian(self, H_tt: np.ndarray, first: np.ndarray, second: np.ndarray, out: np.ndarray | None = None):
-        """The nonzeros of triu(J^T J) (in `out` when given) from the Gauss-Newton parts of every interval
-        (`_hessian_parts`): node n's columns are interval n-1's second-node part plus interval n's first-node part,
-        node 1 without a previous node's rows."""
-        F = first.reshape(self.n_int, -1)
-        columns = second.reshape(self.n_int, -1).copy()
-        columns[:-1] += F[1:]
-        n_tt, n_1 = len(H_tt), len(self._node_1)
-        out = np.empty(n_tt + n_1 + columns[1:].size) if out is None else out
-        out[:n_tt] = H_tt
-        out[n_tt : n_tt + n_1] = columns[0, self._node_1]
-        out[n_tt + n_1 :] = columns[1:].reshape(-1)
-        return out
 
     @property
     def hessian_function(self):
@@ -250,9 +236,14 @@ class JointProblem:
         kept = getattr(self, "_kept", None)
         return kept.last if kept is not None and kept.p is p else None
 
-    def hessian_values(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """The nonzeros of triu(J^T J) at (x, p), in the order of `hessian_sparsity`."""
-        return self.assemble_hessian(*self._maps["gauss_newton"](x, p))
+    def hessian_values(self, x: np.ndarray, p: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """The nonzeros of triu(J^T J) at (x, p), in the order of `hessian_sparsity` (in `out` when given): the
+        Gauss-Newton parts assembled piece by piece (`on_numpy.node_columns_in`)."""
+        n_tt = self._hessian_parts.nnz_out(0)
+        size = self._hessian_parts.nnz_out(1)
+        out = np.empty(n_tt + len(self._node_1) + (self.n_int - 1) * size) if out is None else out
+        consume, finish = node_columns_in(out, n_tt, self._node_1, self.n_int, size)
+        return finish(self._maps["gauss_newton"](x, p, consume)[0])
 
     def residual_values(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
         """The whitened residuals at (x, p), interval by interval (`residual_function`'s output, a new array)."""
@@ -328,16 +319,15 @@ class JointProblem:
         kernels' maps on numpy with the parameters of the running `solve` (no MX graph of the whole problem)."""
         if self._solver is None:
             x, p = ca.MX.sym("x", self.n_x), ca.MX.sym("p", 0)
-            lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", 0)
-            self._objective = OnNumpy(self, "joint_objective", [ca.Sparsity.dense(1, 1)],
+            self._objective = OnNumpy(self, "joint_objective", ["x"], {"f": ca.Sparsity.dense(1, 1)},
                                       lambda x_, p_: [self.objective_value(x_, p_)])
-            self._gradient = OnNumpy(self, "joint_gradient", [ca.Sparsity.dense(1, 1), ca.Sparsity.dense(self.n_x, 1)],
+            self._gradient = OnNumpy(self, "nlp_grad_f", ["x", "p"], {"f": ca.Sparsity.dense(1, 1),
+                                     "grad_f_x": ca.Sparsity.dense(self.n_x, 1)},
                                      lambda x_, p_: list(self.objective_and_gradient(x_, p_)))
             self._kept = KeptHessian(self)
             opts = {
-                "hess_lag": ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [self._kept(x, lam_f)],
-                                        ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]),
-                "grad_f": ca.Function("nlp_grad_f", [x, p], self._gradient(x), ["x", "p"], ["f", "grad_f_x"]),
+                "hess_lag": self._kept,   # the callbacks themselves: no MX function around them (its work copies)
+                "grad_f": self._gradient,
                 "calc_lam_p": False,
                 "no_nlp_grad": True,  # grad_f and hess_lag are given: nothing needs to differentiate f
                 "calc_lam_x": False,
