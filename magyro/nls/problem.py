@@ -230,6 +230,11 @@ class JointProblem:
             self._objective.p = self._gradient.p = None
         return x, dict(buffer.stats())
 
+    def release_solver(self) -> None:
+        """Give IPOPT's memory back (its matrices and MUMPS's factors stay with the solver until it goes: 120 MB at
+        360k samples); the last Hessian stays (`last_hessian`), and `solver` builds a new one when asked."""
+        self._solver = self._objective = self._gradient = None
+
     def last_hessian(self, p: np.ndarray):
         """(x, the nonzeros of triu(J^T J) at x) of the last iteration of the last `solve` with these parameters p,
         or None."""
@@ -291,27 +296,33 @@ class JointProblem:
             layout = GLOBAL_LAYOUT + ACC_GLOBAL_LAYOUT
         gvec = np.concatenate([np.asarray(glob[k], float).reshape(-1, order="F") for k, _ in layout])
         C = lin.C_m_i_nominal
-        D = np.einsum("kji,kjl->kil", C[:-1], C[1:])
         n_int, s, L = self.n_int, g_.stride, g_.substeps
-        cols = {
-            "Cbar": C[:-1].transpose(0, 2, 1).reshape(n_int, 9),  # column-major vec of each C
-            "qD": so3.dcm_to_quat(D),
-            "w_int": np.where(g_.gyro_linked, 1.0 / np.sqrt(g_.interval_s), sigma_gyro_density / HOLE_LINK_STD_RAD)[:, None],
-            "ymag": np.asarray(y_mag)[g_.mag_index].reshape(n_int, 3 * s),
-            "wseg": g_.mag_weight.reshape(n_int, s),
-            "ymid": gyro_at_mag_midpoints(g_, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s).reshape(n_int, 3 * s),
-            "dt": g_.dt_s.reshape(n_int, s * L),
-            "ya": g_.gyro_a.reshape(n_int, 3 * s * L),
-            "yb": g_.gyro_b.reshape(n_int, 3 * s * L),
+        # every column block written straight into the vector (no whole-session array of the data beside it, and
+        # no second one for the leading columns joined on: 2 x 68 MB at 360k samples)
+        out = np.zeros(self.n_p)
+        out[self.global_positions] = gvec
+        data = out[self.n_lead * self.n_data :].reshape(n_int, self.n_data)
+        columns = {
+            "Cbar": lambda: C[:-1].transpose(0, 2, 1).reshape(n_int, 9),  # column-major vec of each C
+            "qD": lambda: so3.dcm_to_quat(np.einsum("kji,kjl->kil", C[:-1], C[1:])),
+            "w_int": lambda: np.where(g_.gyro_linked, 1.0 / np.sqrt(g_.interval_s),
+                                      sigma_gyro_density / HOLE_LINK_STD_RAD)[:, None],
+            "ymag": lambda: np.asarray(y_mag)[g_.mag_index].reshape(n_int, 3 * s),
+            "wseg": lambda: g_.mag_weight.reshape(n_int, s),
+            "ymid": lambda: gyro_at_mag_midpoints(g_, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s).reshape(n_int, 3 * s),
+            "dt": lambda: g_.dt_s.reshape(n_int, s * L),
+            "ya": lambda: g_.gyro_a.reshape(n_int, 3 * s * L),
+            "yb": lambda: g_.gyro_b.reshape(n_int, 3 * s * L),
         }
         if self.walk:   # eta is in field_scale units
-            cols["w_walk"] = (lin.field_scale / (self.walk_density * np.sqrt(g_.interval_s)))[:, None]
+            columns["w_walk"] = lambda: (lin.field_scale / (self.walk_density * np.sqrt(g_.interval_s)))[:, None]
         if self.accelerometer:
-            cols.update(start.columns(acc_weight))
-        data = np.concatenate([cols[k] for k, _ in data_layout(s, L, self.walk, self.accelerometer)], axis=1)
-        lead = np.zeros(self.n_lead * self.n_data)
-        lead[self.global_positions] = gvec
-        return np.concatenate([lead, data.reshape(-1)])
+            columns.update({k: (lambda v=v: v) for k, v in start.columns(acc_weight).items()})
+        o = 0
+        for name, k in data_layout(s, L, self.walk, self.accelerometer):
+            data[:, o : o + k] = columns[name]()
+            o += k
+        return out
 
     # ----------------------------------------------------------------- the solve
     def solver(self, ipopt_options: dict | None = None):
