@@ -43,6 +43,7 @@ import casadi as ca
 import numpy as np
 
 from magyro import so3
+from magyro.memory import give_back
 from magyro.nls.grid import Grid, gyro_at_mag_midpoints
 from magyro.nls.on_numpy import KeptHessian, MapOnNumpy, OnNumpy, half_sum_of_squares, node_columns_in
 from magyro.nls.interval import (ACC_GLOBAL_LAYOUT, GLOBAL_LAYOUT, N_ACC_THETA, N_GLOBAL, NO_HUBER,
@@ -216,6 +217,7 @@ class JointProblem:
         p = np.ascontiguousarray(p, dtype=float)
         self._kept.start(p)
         self._objective.p = self._gradient.p = p
+        give_back()   # the set-up's freed temporaries, before IPOPT's matrices come on top
         buffer, run = solver.buffer()
         free = np.full(self.n_x, np.inf)
         held = {"x0": np.array(x0, dtype=float), "lbx": -free, "ubx": free}
@@ -234,6 +236,7 @@ class JointProblem:
         """Give IPOPT's memory back (its matrices and MUMPS's factors stay with the solver until it goes: 120 MB at
         360k samples); the last Hessian stays (`last_hessian`), and `solver` builds a new one when asked."""
         self._solver = self._objective = self._gradient = None
+        give_back()
 
     def last_hessian(self, p: np.ndarray):
         """(x, the nonzeros of triu(J^T J) at x) of the last iteration of the last `solve` with these parameters p,
