@@ -71,12 +71,12 @@ class MapOnNumpy:
         return self.out
 
 
-def half_sum_of_squares(r: np.ndarray, block: int = 65536) -> float:
-    """0.5 |r|^2 summed in r's order, one term after another, as CasADi's sumsqr sums (bit for bit)."""
-    total = 0.0
+def sum_of_squares(r: np.ndarray, total: float = 0.0, block: int = 65536) -> float:
+    """total + |r|^2 summed in r's order, one term after another, as CasADi's sumsqr sums (bit for bit): a sum over
+    pieces, each continuing the last one's total, is the same sum."""
     for a in range(0, r.size, block):
         total = float(np.cumsum(np.concatenate([[total], r[a : a + block] ** 2]))[-1])
-    return 0.5 * total
+    return total
 
 
 def node_columns_in(out: np.ndarray, n_tt: int, node_1: np.ndarray, n_int: int, size: int):

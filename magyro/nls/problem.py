@@ -45,7 +45,7 @@ import numpy as np
 from magyro import so3
 from magyro.memory import give_back
 from magyro.nls.grid import Grid, gyro_at_mag_midpoints
-from magyro.nls.on_numpy import KeptHessian, MapOnNumpy, OnNumpy, half_sum_of_squares, node_columns_in
+from magyro.nls.on_numpy import KeptHessian, MapOnNumpy, OnNumpy, node_columns_in, sum_of_squares
 from magyro.nls.interval import (ACC_GLOBAL_LAYOUT, GLOBAL_LAYOUT, N_ACC_THETA, N_GLOBAL, NO_HUBER,
                                  accelerometer_jacobian, data_layout, global_size, kernel_key, kernel_set, node_size,
                                  unpack_accelerometer, unpack_globals)
@@ -193,7 +193,7 @@ class JointProblem:
         and the data go in by pointer, so no MX graph over the whole problem is built (at 360k samples the three
         graphs, their nlpsol and the patterns of the 8.5M parameters took ~300 MB and 1.4 s) and no evaluation
         copies the parameters into a work vector (68 MB each)."""
-        return {"residuals": MapOnNumpy(self, self.residual_kernel),
+        return {"residuals": MapOnNumpy(self, self.residual_kernel, pieces=True),
                 "gradient": MapOnNumpy(self, self.gradient_kernel, summed=(0, 1)),
                 "gauss_newton": MapOnNumpy(self, self._hessian_parts, summed=(0,), pieces=True)}
 
@@ -254,12 +254,23 @@ class JointProblem:
         return finish(self._maps["gauss_newton"](x, p, consume)[0])
 
     def residual_values(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """The whitened residuals at (x, p), interval by interval (`residual_function`'s output, a new array)."""
-        return self._maps["residuals"](x, p)[0].copy()
+        """The whitened residuals at (x, p), interval by interval (`residual_function`'s output)."""
+        k = self.n_res_per_interval
+        r = np.empty(k * self.n_int)
+
+        def put(a, b, out):
+            r[a * k : b * k] = out[0]
+        self._maps["residuals"](x, p, put)
+        return r
 
     def objective_value(self, x: np.ndarray, p: np.ndarray) -> float:
-        """0.5 |r|^2 at (x, p)."""
-        return half_sum_of_squares(self._maps["residuals"](x, p)[0])
+        """0.5 |r|^2 at (x, p), summed piece by piece (no array of every residual)."""
+        total = [0.0]
+
+        def add(a, b, out):
+            total[0] = sum_of_squares(out[0], total[0])
+        self._maps["residuals"](x, p, add)
+        return 0.5 * total[0]
 
     def objective_and_gradient(self, x: np.ndarray, p: np.ndarray) -> tuple[float, np.ndarray]:
         """(0.5 |r|^2, its gradient) at (x, p), from the gradient kernel: the theta rows summed over the
