@@ -3,7 +3,7 @@
 `MapOnNumpy` runs a kernel over every interval a piece at a time, its arguments pointers into x and the parameter
 vector p; `OnNumpy` and `KeptHessian` are the callbacks nlpsol calls for the objective, its gradient and the
 Gauss-Newton Hessian, with the parameters of the running `JointProblem.solve` (the NLP itself has none: no DM, no
-pattern and no work copy of the 8.5M parameters of 360k samples). Every number is the one the MX graphs gave, bit
+pattern and no work copy of the 5.5M parameters (42 MB) of 360k samples). Every number is the one the MX graphs gave, bit
 for bit: the same kernels, summed over the intervals in the same order.
 """
 from __future__ import annotations
@@ -157,7 +157,7 @@ class KeptHessian(ca.Callback):
     (its nonzeros): at convergence the std is taken from it (the Gauss-Newton Hessian of the last iterate: one
     evaluation of the Gauss-Newton kernel over every interval saved, 1.2-1.5 s at 360k samples). The parameters
     are those of the running `JointProblem.solve`. Evaluated through buffers into one array per solve: no DM is
-    made of x, of the 8.5M parameters or of H, and no MX function wraps it (its work copy of H)."""
+    made of x, of the parameters or of H, and no MX function wraps it (its work copy of H)."""
 
     def __init__(self, problem):
         ca.Callback.__init__(self)

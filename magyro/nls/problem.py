@@ -191,8 +191,8 @@ class JointProblem:
     def _maps(self) -> dict:
         """The three kernels over the intervals alone, each evaluated on numpy in pieces (`MapOnNumpy`): the states
         and the data go in by pointer, so no MX graph over the whole problem is built (at 360k samples the three
-        graphs, their nlpsol and the patterns of the 8.5M parameters took ~300 MB and 1.4 s) and no evaluation
-        copies the parameters into a work vector (68 MB each)."""
+        graphs, their nlpsol and the patterns of the 5.5M parameters took ~300 MB and 1.4 s) and no evaluation
+        copies the parameters into a work vector (42 MB each)."""
         return {"residuals": MapOnNumpy(self, self.residual_kernel, pieces=True),
                 "gradient": MapOnNumpy(self, self.gradient_kernel, summed=(0, 1)),
                 "gauss_newton": MapOnNumpy(self, self._hessian_parts, summed=(0,), pieces=True)}
@@ -312,7 +312,7 @@ class JointProblem:
         C = lin.C_m_i_nominal
         n_int, s, L = self.n_int, g_.stride, g_.substeps
         # every column block written straight into the vector (no whole-session array of the data beside it, and
-        # no second one for the leading columns joined on: 2 x 68 MB at 360k samples)
+        # no second one for the leading columns joined on: 2 x 42 MB at 360k samples)
         out = np.zeros(self.n_p)
         out[self.global_positions] = gvec
         data = out[self.n_lead * self.n_data :].reshape(n_int, self.n_data)
