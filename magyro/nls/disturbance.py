@@ -132,6 +132,7 @@ def magnitude_and_gradient(problem: JointProblem, theta, g, mag: np.ndarray):
 
 
 SENSITIVITY_CHUNK = 1024   # intervals per piece of the sensitivities: their memory is a piece's, not the session's
+ROWS_MAP = 256             # intervals per evaluation of the rows' map
 
 
 def disturbance_information(problem: JointProblem, x, p, reduced: Reduced, C_m_i_nodes: np.ndarray,
@@ -196,13 +197,18 @@ class ThetaRows:
         self.maps = {}
 
     def __call__(self, n: slice) -> np.ndarray:
-        """(m, 3 stride, n_theta): the magnetometer residuals' rows of each interval."""
+        """(m, 3 stride, n_theta): the magnetometer residuals' rows of each interval, ROWS_MAP intervals per
+        evaluation of the map (a map's construction grows faster than its length: 27 ms for 833 intervals, 6 ms for
+        256; one map of ROWS_MAP serves every piece)."""
         problem, m = self.problem, n.stop - n.start
-        if m not in self.maps:
-            self.maps[m] = self.rows.map(m, [True, False, False, True, False], [False], {})
-        values = evaluate(self.maps[m], self.x_theta, self.states[n].ravel(), self.states[n.start + 1 : n.stop + 1].ravel(),
-                          self.g_values, self.data[n].ravel())[0]
-        rows = values.reshape(m, problem.n_res_per_interval, problem.n_theta)   # J_theta^T column-major, per interval
+        rows = np.empty((m, problem.n_res_per_interval, problem.n_theta))   # J_theta^T column-major, per interval
+        for a in range(n.start, n.stop, ROWS_MAP):
+            b = min(a + ROWS_MAP, n.stop)
+            if b - a not in self.maps:
+                self.maps[b - a] = self.rows.map(b - a, [True, False, False, True, False], [False], {})
+            rows[a - n.start : b - n.start] = evaluate(
+                self.maps[b - a], self.x_theta, self.states[a:b].ravel(), self.states[a + 1 : b + 1].ravel(),
+                self.g_values, self.data[a:b].ravel())[0].reshape(b - a, problem.n_res_per_interval, problem.n_theta)
         return rows[:, : 3 * problem.grid.stride]
 
 

@@ -28,9 +28,11 @@ error for rates linear in time). Residuals, whitened:
                   with L L^T = K0 K0^T (the gyro noise enters through K)
 
 One SX kernel computes an interval's residuals and, for the Gauss-Newton
-Hessian, its Jacobian blocks; it is `map`ped over the intervals. The
-Hessian J^T J is assembled from those blocks (theta-theta by one sparse
-product), so no derivative of the whole graph is ever formed.
+Hessian, its Jacobian blocks; it is `map`ped over the intervals, a piece at a
+time, on numpy (`magyro.nls.on_numpy`): IPOPT's objective, gradient and Hessian
+are callbacks, so no MX graph of the whole problem and no derivative of one is
+ever formed (`residual_function` builds the residuals' graph for symbolic use).
+The Hessian J^T J is assembled from those blocks.
 """
 from __future__ import annotations
 
@@ -41,7 +43,9 @@ import casadi as ca
 import numpy as np
 
 from magyro import so3
+from magyro.memory import give_back
 from magyro.nls.grid import Grid, gyro_at_mag_midpoints
+from magyro.nls.on_numpy import KeptHessian, MapOnNumpy, OnNumpy, node_columns_in, sum_of_squares
 from magyro.nls.interval import (ACC_GLOBAL_LAYOUT, GLOBAL_LAYOUT, N_ACC_THETA, N_GLOBAL, NO_HUBER,
                                  accelerometer_jacobian, data_layout, global_size, kernel_key, kernel_set, node_size,
                                  unpack_accelerometer, unpack_globals)
@@ -144,8 +148,7 @@ class JointProblem:
         """The intervals' data of a parameter vector, (n_int, n_data)."""
         return np.asarray(p)[self.n_lead * self.n_data :].reshape(self.n_int, self.n_data)
 
-    # The three MX graphs are built on first use: the accuracy prediction and the CRLB need only
-    # the Hessian, which saves two thirds of the graph-building time of `magyro observe`.
+    # The residuals' MX graph, for symbolic use (derivatives in tests): the numbers come from `_maps`.
     @cached_property
     def _symbols(self):
         x = ca.MX.sym("x", self.n_x)
@@ -169,67 +172,34 @@ class JointProblem:
         return self._residual_graph[0]
 
     @cached_property
-    def _gradient_graph(self):
-        x, p, args = self._symbols
-        ssq, g_t, g_l, g_r = self.gradient_kernel.map(self.n_map)(*args)   # the leading columns give zeros
-        g_l, g_r = self._intervals(g_l), self._intervals(g_r)
-        grad_phi = ca.horzcat(but_first_column(g_l), ca.MX.zeros(self.B, 1)) + g_r
-        grad = ca.vertcat(ca.sum2(g_t), ca.vec(grad_phi))
-        grad_f = ca.Function("nlp_grad_f", [x, p], [0.5 * ca.sum2(ssq), grad], ["x", "p"], ["f", "grad_f_x"])
-        return ca.Function("gradient", [x, p], [grad]), grad_f
-
-    @property
-    def gradient_function(self) -> ca.Function:
-        return self._gradient_graph[0]
-
-    @cached_property
-    def _hessian_graph(self):
-        """triu(J^T J) from the Gauss-Newton kernel, in the order of `hessian_sparsity`.
-
-        The kernel gives each interval's triu(J_theta^T J_theta), summed by the map itself (no n_theta x
-        n_res n_int J_theta^T is ever held: at 360k samples it and its transpose took 4 x 260 MB of patterns
-        and work vectors), and its contributions to its two nodes' columns already in compressed-column
-        order, so node n's column values are interval n-1's second-node part plus interval n's first-node
-        part: one sum, no permutation. The graph stops at the map's outputs; that sum and the values' order are
-        numpy's (`assemble_hessian`): done in the graph, the dense intermediates' patterns and work vectors took
-        230 MB more at 360k samples and 0.6 s more to build."""
-        x, p, args = self._symbols
+    def _hessian_parts(self) -> ca.Function:
+        """One interval's Gauss-Newton parts, densified: triu(J_theta^T J_theta) and its two nodes' columns in
+        compressed-column order (see `on_numpy.node_columns_in`)."""
         k = self.gn_kernel
         inputs = [ca.MX.sym(k.name_in(i), k.sparsity_in(i)) for i in range(k.n_in())]
-        hessian_parts = ca.Function("interval_hessian_parts", inputs, [ca.densify(v) for v in k(*inputs)[1:]])
-        theta_shared = [True, False, False, True, False]          # theta and g are the same for every interval
-        parts = ca.Function("gauss_newton_parts", [x, p],
-                            list(hessian_parts.map(self.n_map, theta_shared, [True, False, False], {})(*args)))
+        return ca.Function("interval_hessian_parts", inputs, [ca.densify(v) for v in k(*inputs)[1:]])
+
+    @cached_property
+    def _node_1(self) -> np.ndarray:
+        """Node 1's values among a node's column values: no previous node's rows."""
         G, B = self.n_theta, self.B
-        self._node_1 = np.sort(np.concatenate(   # node 1's values: no previous node's rows
+        return np.sort(np.concatenate(
             [np.arange(o, o + G) for o in column_starts(G, B)]
             + [np.arange(o + G + B, o + G + B + c + 1) for c, o in enumerate(column_starts(G, B))]))
-        self._kept = KeptHessian(self, parts)
-        lam_f = ca.MX.sym("lam_f")
-        lam_g = ca.MX.sym("lam_g", 0)
-        hess_lag = ca.Function(
-            "nlp_hess_l", [x, p, lam_f, lam_g], [self._kept(x, lam_f)], ["x", "p", "lam_f", "lam_g"],
-            ["triu_hess_gamma_x_x"])
-        return parts, hess_lag
+
+    @cached_property
+    def _maps(self) -> dict:
+        """The three kernels over the intervals alone, each evaluated on numpy in pieces (`MapOnNumpy`): the states
+        and the data go in by pointer, so no MX graph over the whole problem is built (at 360k samples the three
+        graphs, their nlpsol and the patterns of the 5.5M parameters took ~300 MB and 1.4 s) and no evaluation
+        copies the parameters into a work vector (42 MB each)."""
+        return {"residuals": MapOnNumpy(self, self.residual_kernel, pieces=True),
+                "gradient": MapOnNumpy(self, self.gradient_kernel, summed=(0, 1)),
+                "gauss_newton": MapOnNumpy(self, self._hessian_parts, summed=(0,), pieces=True)}
 
     @cached_property
     def hessian_pattern(self) -> ca.Sparsity:
         return hessian_sparsity(self.n_int, self.n_theta, self.B)
-
-    def assemble_hessian(self, H_tt: np.ndarray, first: np.ndarray, second: np.ndarray, out: np.ndarray | None = None):
-        """The nonzeros of triu(J^T J) (in `out` when given) from the Gauss-Newton map's outputs' nonzeros: node n's
-        columns are interval n-1's second-node part plus interval n's first-node part (the intervals after the
-        leading columns of the globals), node 1 without a previous node's rows."""
-        size = first.size // self.n_map
-        F = first.reshape(self.n_map, size)[self.n_lead :]
-        columns = second.reshape(self.n_map, size)[self.n_lead :].copy()
-        columns[:-1] += F[1:]
-        n_tt, n_1 = len(H_tt), len(self._node_1)
-        out = np.empty(n_tt + n_1 + columns[1:].size) if out is None else out
-        out[:n_tt] = H_tt
-        out[n_tt : n_tt + n_1] = columns[0, self._node_1]
-        out[n_tt + n_1 :] = columns[1:].reshape(-1)
-        return out
 
     @property
     def hessian_function(self):
@@ -240,13 +210,17 @@ class JointProblem:
         return hessian
 
     def solve(self, solver, x0: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, dict]:
-        """(the solution, IPOPT's stats): IPOPT from x0 with the parameters p, through buffers (no DM of the
-        parameters); the last Gauss-Newton Hessian IPOPT evaluated is kept (`last_hessian`)."""
-        self._hessian_graph
+        """(the solution, IPOPT's stats): IPOPT from x0 with the parameters p, which the callbacks of the NLP read
+        from numpy (the NLP has no parameter: no DM or work copy of p); the last Gauss-Newton Hessian IPOPT
+        evaluated is kept (`last_hessian`)."""
+        self.solver()
+        p = np.ascontiguousarray(p, dtype=float)
         self._kept.start(p)
+        self._objective.p = self._gradient.p = p
+        give_back()   # the set-up's freed temporaries, before IPOPT's matrices come on top
         buffer, run = solver.buffer()
         free = np.full(self.n_x, np.inf)
-        held = {"x0": np.array(x0, dtype=float), "p": p, "lbx": -free, "ubx": free}
+        held = {"x0": np.array(x0, dtype=float), "lbx": -free, "ubx": free}
         for name, value in held.items():
             buffer.set_arg(solver.index_in(name), memoryview(value))
         x = np.zeros(self.n_x)
@@ -255,7 +229,14 @@ class JointProblem:
             run()
         finally:
             self._kept.stop()
+            self._objective.p = self._gradient.p = None
         return x, dict(buffer.stats())
+
+    def release_solver(self) -> None:
+        """Give IPOPT's memory back (its matrices and MUMPS's factors stay with the solver until it goes: 120 MB at
+        360k samples); the last Hessian stays (`last_hessian`), and `solver` builds a new one when asked."""
+        self._solver = self._objective = self._gradient = None
+        give_back()
 
     def last_hessian(self, p: np.ndarray):
         """(x, the nonzeros of triu(J^T J) at x) of the last iteration of the last `solve` with these parameters p,
@@ -263,12 +244,47 @@ class JointProblem:
         kept = getattr(self, "_kept", None)
         return kept.last if kept is not None and kept.p is p else None
 
-    def hessian_values(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """The nonzeros of triu(J^T J) at (x, p), in the order of `hessian_sparsity`."""
-        return self.assemble_hessian(*evaluate(self._hessian_graph[0], x, p))
+    def hessian_values(self, x: np.ndarray, p: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """The nonzeros of triu(J^T J) at (x, p), in the order of `hessian_sparsity` (in `out` when given): the
+        Gauss-Newton parts assembled piece by piece (`on_numpy.node_columns_in`)."""
+        n_tt = self._hessian_parts.nnz_out(0)
+        size = self._hessian_parts.nnz_out(1)
+        out = np.empty(n_tt + len(self._node_1) + (self.n_int - 1) * size) if out is None else out
+        consume, finish = node_columns_in(out, n_tt, self._node_1, self.n_int, size)
+        return finish(self._maps["gauss_newton"](x, p, consume)[0])
+
+    def residual_values(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """The whitened residuals at (x, p), interval by interval (`residual_function`'s output)."""
+        k = self.n_res_per_interval
+        r = np.empty(k * self.n_int)
+
+        def put(a, b, out):
+            r[a * k : b * k] = out[0]
+        self._maps["residuals"](x, p, put)
+        return r
+
+    def objective_value(self, x: np.ndarray, p: np.ndarray) -> float:
+        """0.5 |r|^2 at (x, p), summed piece by piece (no array of every residual)."""
+        total = [0.0]
+
+        def add(a, b, out):
+            total[0] = sum_of_squares(out[0], total[0])
+        self._maps["residuals"](x, p, add)
+        return 0.5 * total[0]
+
+    def objective_and_gradient(self, x: np.ndarray, p: np.ndarray) -> tuple[float, np.ndarray]:
+        """(0.5 |r|^2, its gradient) at (x, p), from the gradient kernel: the theta rows summed over the
+        intervals, node n's columns interval n-1's right part plus interval n's left part."""
+        ssq, g_t, g_l, g_r = self._maps["gradient"](x, p)
+        B = self.B
+        grad = np.empty(self.n_x)
+        grad[: self.n_theta] = g_t
+        grad[self.n_theta :] = g_r
+        grad[self.n_theta : self.n_x - B] += g_l[B:]
+        return 0.5 * float(ssq[0]), grad
 
     def gradient_values(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
-        return evaluate(self.gradient_function, x, p)[0]
+        return self.objective_and_gradient(x, p)[1]
 
     # ---------------------------------------------------------------- numbers in
     def parameters(self, lin: Linearisation, y_mag, sigma_mag: float, sigma_gyro_density: float,
@@ -294,34 +310,49 @@ class JointProblem:
             layout = GLOBAL_LAYOUT + ACC_GLOBAL_LAYOUT
         gvec = np.concatenate([np.asarray(glob[k], float).reshape(-1, order="F") for k, _ in layout])
         C = lin.C_m_i_nominal
-        D = np.einsum("kji,kjl->kil", C[:-1], C[1:])
         n_int, s, L = self.n_int, g_.stride, g_.substeps
-        cols = {
-            "Cbar": C[:-1].transpose(0, 2, 1).reshape(n_int, 9),  # column-major vec of each C
-            "qD": so3.dcm_to_quat(D),
-            "w_int": np.where(g_.gyro_linked, 1.0 / np.sqrt(g_.interval_s), sigma_gyro_density / HOLE_LINK_STD_RAD)[:, None],
-            "ymag": np.asarray(y_mag)[g_.mag_index].reshape(n_int, 3 * s),
-            "wseg": g_.mag_weight.reshape(n_int, s),
-            "ymid": gyro_at_mag_midpoints(g_, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s).reshape(n_int, 3 * s),
-            "dt": g_.dt_s.reshape(n_int, s * L),
-            "ya": g_.gyro_a.reshape(n_int, 3 * s * L),
-            "yb": g_.gyro_b.reshape(n_int, 3 * s * L),
+        # every column block written straight into the vector (no whole-session array of the data beside it, and
+        # no second one for the leading columns joined on: 2 x 42 MB at 360k samples)
+        out = np.zeros(self.n_p)
+        out[self.global_positions] = gvec
+        data = out[self.n_lead * self.n_data :].reshape(n_int, self.n_data)
+        columns = {
+            "Cbar": lambda: C[:-1].transpose(0, 2, 1).reshape(n_int, 9),  # column-major vec of each C
+            "qD": lambda: so3.dcm_to_quat(np.einsum("kji,kjl->kil", C[:-1], C[1:])),
+            "w_int": lambda: np.where(g_.gyro_linked, 1.0 / np.sqrt(g_.interval_s),
+                                      sigma_gyro_density / HOLE_LINK_STD_RAD)[:, None],
+            "ymag": lambda: np.asarray(y_mag)[g_.mag_index].reshape(n_int, 3 * s),
+            "wseg": lambda: g_.mag_weight.reshape(n_int, s),
+            "ymid": lambda: gyro_at_mag_midpoints(g_, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s).reshape(n_int, 3 * s),
+            "dt": lambda: g_.dt_s.reshape(n_int, s * L),
+            "ya": lambda: g_.gyro_a.reshape(n_int, 3 * s * L),
+            "yb": lambda: g_.gyro_b.reshape(n_int, 3 * s * L),
         }
         if self.walk:   # eta is in field_scale units
-            cols["w_walk"] = (lin.field_scale / (self.walk_density * np.sqrt(g_.interval_s)))[:, None]
+            columns["w_walk"] = lambda: (lin.field_scale / (self.walk_density * np.sqrt(g_.interval_s)))[:, None]
         if self.accelerometer:
-            cols.update(start.columns(acc_weight))
-        data = np.concatenate([cols[k] for k, _ in data_layout(s, L, self.walk, self.accelerometer)], axis=1)
-        lead = np.zeros(self.n_lead * self.n_data)
-        lead[self.global_positions] = gvec
-        return np.concatenate([lead, data.reshape(-1)])
+            columns.update({k: (lambda v=v: v) for k, v in start.columns(acc_weight).items()})
+        o = 0
+        for name, k in data_layout(s, L, self.walk, self.accelerometer):
+            data[:, o : o + k] = columns[name]()
+            o += k
+        return out
 
     # ----------------------------------------------------------------- the solve
     def solver(self, ipopt_options: dict | None = None):
+        """IPOPT on the NLP in x alone: objective, gradient and Gauss-Newton Hessian are callbacks that evaluate the
+        kernels' maps on numpy with the parameters of the running `solve` (no MX graph of the whole problem)."""
         if self._solver is None:
+            x, p = ca.MX.sym("x", self.n_x), ca.MX.sym("p", 0)
+            self._objective = OnNumpy(self, "joint_objective", ["x"], {"f": ca.Sparsity.dense(1, 1)},
+                                      lambda x_, p_: [self.objective_value(x_, p_)])
+            self._gradient = OnNumpy(self, "nlp_grad_f", ["x", "p"], {"f": ca.Sparsity.dense(1, 1),
+                                     "grad_f_x": ca.Sparsity.dense(self.n_x, 1)},
+                                     lambda x_, p_: list(self.objective_and_gradient(x_, p_)))
+            self._kept = KeptHessian(self)
             opts = {
-                "hess_lag": self._hessian_graph[1],
-                "grad_f": self._gradient_graph[1],
+                "hess_lag": self._kept,   # the callbacks themselves: no MX function around them (its work copies)
+                "grad_f": self._gradient,
                 "calc_lam_p": False,
                 "no_nlp_grad": True,  # grad_f and hess_lag are given: nothing needs to differentiate f
                 "calc_lam_x": False,
@@ -347,62 +378,8 @@ class JointProblem:
                 "ipopt.mumps_pivot_order": 6,
             }
             opts.update(ipopt_options or {})
-            x, p, _ = self._symbols
-            self._solver = ca.nlpsol("joint", "ipopt", {"x": x, "p": p, "f": self._residual_graph[1]}, opts)
+            self._solver = ca.nlpsol("joint", "ipopt", {"x": x, "p": p, "f": self._objective(x)}, opts)
         return self._solver
-
-
-class KeptHessian(ca.Callback):
-    """IPOPT's hess_lag, lam_f J^T J, keeping the last J^T J it evaluated (its nonzeros): at convergence the std is
-    taken from it (the Gauss-Newton Hessian of the last iterate: one evaluation of the Gauss-Newton kernel over
-    every interval saved, 1.2-1.5 s at 360k samples). The parameters are those of the running
-    `JointProblem.solve`. Evaluated through buffers: no DM is made of x, of the 8.5M parameters or of H."""
-
-    def __init__(self, problem, parts: ca.Function):
-        ca.Callback.__init__(self)
-        self.problem, self.parts, self.n_x = problem, parts, problem.n_x
-        self.p, self.last = None, None
-        self.buffer = self.run = self.outputs = None
-        self.construct("kept_gauss_newton_hessian", {})
-
-    def start(self, p: np.ndarray) -> None:
-        """Before a solve: its parameters, and one evaluation buffer for all its iterations (a new buffer is new
-        work memory, and its first touch cost 0.3 s an iteration at 360k samples)."""
-        self.p, self.last = p, None
-        self.buffer, self.run = self.parts.buffer()
-        self.outputs = [np.zeros(self.parts.nnz_out(i)) for i in range(self.parts.n_out())]
-        for i, o in enumerate(self.outputs):
-            self.buffer.set_res(i, memoryview(o))
-
-    def stop(self) -> None:
-        """After a solve: the work memory given back."""
-        self.buffer = self.run = self.outputs = None
-
-    def get_n_in(self):
-        return 2
-
-    def get_n_out(self):
-        return 1
-
-    def get_sparsity_in(self, i):
-        return ca.Sparsity.dense(self.n_x, 1) if i == 0 else ca.Sparsity.dense(1, 1)
-
-    def get_sparsity_out(self, i):
-        return self.problem.hessian_pattern
-
-    def has_eval_buffer(self):
-        return True
-
-    def eval_buffer(self, arg, res):
-        x = np.frombuffer(arg[0], dtype=float).copy()
-        lam_f = float(np.frombuffer(arg[1], dtype=float)[0])
-        self.buffer.set_arg(0, memoryview(x))
-        self.buffer.set_arg(1, memoryview(self.p))
-        self.run()
-        values = self.problem.assemble_hessian(*self.outputs)
-        self.last = (x, values)
-        np.multiply(values, lam_f, out=np.frombuffer(res[0], dtype=float))
-        return 0
 
 
 def evaluate(fn: ca.Function, *args) -> list[np.ndarray]:

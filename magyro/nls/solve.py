@@ -24,7 +24,7 @@ from magyro.options import Options
 from magyro.observability.gate import unexcited_directions
 from magyro.nls.accelerometer import accelerometer_start, solved_hand_weights
 from magyro.nls.interval import N_GLOBAL, TIME_OFFSET_SCALE_S
-from magyro.nls.problem import JointProblem, Linearisation, evaluate
+from magyro.nls.problem import JointProblem, Linearisation
 from magyro.errors import InputError, ObservabilityError
 from magyro.result.reported import mirror_is_credible, qr_split
 from magyro.session import HOLE_FACTOR, Session, hole_steps, runs_of_true
@@ -196,7 +196,7 @@ def magnetometer_noise_factor(problem: JointProblem, residuals: np.ndarray) -> f
 def residual_matrix(problem: JointProblem, x, p) -> np.ndarray:
     """Whitened residuals, one row per interval: the magnetometer samples, then the gyro mismatch (then the hard
     iron's walk step, when it moves)."""
-    return evaluate(problem.residual_function, x, p)[0].reshape(problem.n_int, problem.n_res_per_interval)
+    return problem.residual_values(x, p).reshape(problem.n_int, problem.n_res_per_interval)
 
 
 def magnetometer_residuals(r: np.ndarray, stride: int) -> np.ndarray:
@@ -269,34 +269,37 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
     max_passes = MAX_VARIANCE_PASSES if estimating else MAX_PASSES
     x = np.zeros(problem.n_x)
     seconds, iterations, step = 0.0, 0, None
-    for n_pass in range(1, max_passes + 1):
-        p = problem_parameters(problem, prep, lin, sigma_mag, tau0, density, acc_weight)
-        t0 = time.perf_counter()
-        x, stats = problem.solve(solver, x, p)   # through buffers: no DM of p (0.6-1 s and 68 MB at 360k samples)
-        seconds += time.perf_counter() - t0
-        iterations += int(stats["iter_count"])
-        stats["iter_count"] = iterations
-        tau = float(problem.physical_function(x[: problem.n_theta], problem.globals_of(p))[5].full().item())
-        r = residual_matrix(problem, x, p) if (method.reweight_noise or estimating or problem.accelerometer) else None
-        if estimating:
-            step = variance_step(x, r, sigma_mag, density, tau0)
-            gyro_factor, mag_factor = step.gyro_factor, step.mag_factor
-            reweight = max(abs(gyro_factor - 1.0), abs(mag_factor - 1.0)) > VARIANCE_TOLERANCE
-        else:
-            gyro_factor, mag_factor = 1.0, (1.0 if r is None else magnetometer_noise_factor(problem, r))
-            reweight = abs(mag_factor - 1.0) > NOISE_RESCALE_TOLERANCE
-        moved = abs(tau - tau0) * max(abs(tau), abs(tau0)) > TIME_OFFSET_RELOOK_S2
-        new_acc, acc_moved = (accelerometer_reweighted(problem, lin, r, acc_weight) if problem.accelerometer
-                              else (None, False))
-        if n_pass == max_passes or not (moved or reweight or acc_moved):
-            return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, r, density, step, not reweight,
-                            acc_weight)
-        if acc_moved:
-            acc_weight = new_acc
-        if moved and problem.estimate_time_offset:
-            x[N_GLOBAL] += (tau0 - tau) / TIME_OFFSET_SCALE_S  # same tau, now about the new tau0
-            tau0 = tau
-        if reweight:
-            sigma_mag *= mag_factor
-            density *= gyro_factor
+    try:
+        for n_pass in range(1, max_passes + 1):
+            p = problem_parameters(problem, prep, lin, sigma_mag, tau0, density, acc_weight)
+            t0 = time.perf_counter()
+            x, stats = problem.solve(solver, x, p)   # through buffers: no DM of p (0.6-1 s and 68 MB at 360k samples)
+            seconds += time.perf_counter() - t0
+            iterations += int(stats["iter_count"])
+            stats["iter_count"] = iterations
+            tau = float(problem.physical_function(x[: problem.n_theta], problem.globals_of(p))[5].full().item())
+            r = residual_matrix(problem, x, p) if (method.reweight_noise or estimating or problem.accelerometer) else None
+            if estimating:
+                step = variance_step(x, r, sigma_mag, density, tau0)
+                gyro_factor, mag_factor = step.gyro_factor, step.mag_factor
+                reweight = max(abs(gyro_factor - 1.0), abs(mag_factor - 1.0)) > VARIANCE_TOLERANCE
+            else:
+                gyro_factor, mag_factor = 1.0, (1.0 if r is None else magnetometer_noise_factor(problem, r))
+                reweight = abs(mag_factor - 1.0) > NOISE_RESCALE_TOLERANCE
+            moved = abs(tau - tau0) * max(abs(tau), abs(tau0)) > TIME_OFFSET_RELOOK_S2
+            new_acc, acc_moved = (accelerometer_reweighted(problem, lin, r, acc_weight) if problem.accelerometer
+                                  else (None, False))
+            if n_pass == max_passes or not (moved or reweight or acc_moved):
+                return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, r, density, step, not reweight,
+                                acc_weight)
+            if acc_moved:
+                acc_weight = new_acc
+            if moved and problem.estimate_time_offset:
+                x[N_GLOBAL] += (tau0 - tau) / TIME_OFFSET_SCALE_S  # same tau, now about the new tau0
+                tau0 = tau
+            if reweight:
+                sigma_mag *= mag_factor
+                density *= gyro_factor
+    finally:
+        problem.release_solver()   # IPOPT's memory back before the std
     raise AssertionError("unreachable")
