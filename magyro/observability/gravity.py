@@ -148,7 +148,7 @@ class AccelerometerObservability:
         out = ["accelerometer (gravity, a second reference vector; the verdict above is the field's alone):",
                f"  gravity's directions in the body: {100 * self.sphere_fraction:.0f}% of the sphere "
                f"({self.cells_visited} of {self.cells} cells); poses held (s, weighted by stillness):",
-               "    " + ", ".join(f"{f[1]} {'up' if f[0] == '+' else 'down'} {self.face_s[f]:.1f}" for f in FACES),
+               "    " + ", ".join(f"{pose_name(f)} {self.face_s[f]:.1f}" for f in FACES),
                f"  its 12 parameters (f = A y + b): rank {self.rank} of 12, condition {_fmt(self.condition)}; "
                f"spread {self.spread:.2f} (1 = six poses; weakest along {body_direction(self.spread_weakest)})",
                f"    weakest: {self.directions[0][4]} (eigenvalue {self.directions[0][0]:.2g} of the largest)"]
@@ -227,7 +227,7 @@ def pose_words(face: str) -> str:
 
 
 def accelerometer_advice(face_s: dict, spread: float, weakest: np.ndarray) -> list[str]:
-    missing = [f for f in FACES if face_s[f] < FACE_ENOUGH_S]
+    missing = missing_poses(face_s)
     advice = []
     if missing:
         advice.append("Hold the device still for a few seconds with " + "; with ".join(pose_words(f) for f in missing)
@@ -357,18 +357,18 @@ def combined_rank(lam, V, *references) -> int:
 # --------------------------------------------------------------------------- both
 
 
-def observe_accelerometer(full_session, moving_session, field_m, analysis, rates_rad_s, rests_s,
-                          gyro_sample_std: float, mag_std_unit_field: float) -> AccelerometerObservability | None:
-    """Parts 1 and 2, or None when the session has no (usable) accelerometer.
-
-    Part 1 uses every accelerometer sample of `full_session` (the rests are its best poses); part 2 the span the
-    gate analyses (`moving_session`), beside the field's integral."""
+def accelerometer_parameters(t_acc_s, acc_m_s2, rests_s, t_gyro_s=None, gyro_rad_s=None
+                             ) -> AccelerometerObservability | None:
+    """Part 1 alone (the accelerometer's own 12 parameters: poses, rank, spread, sphere, advice; `gyro` None), from
+    every accelerometer sample, or None when there is no usable accelerometer. `rests_s` are the gyro's rests (the
+    reference g and the white noise are read there; none: `reference_g`'s and `accelerometer_noise`'s fallbacks).
+    `observe_accelerometer` adds part 2 to it; `magyro watch` calls it on the data received so far."""
     from magyro.observability.report import SPHERE_BANDS, SPHERE_SECTORS, sphere_cell
 
-    ta, acc = _finite(full_session.t_acc_s, full_session.acc_m_s2)
+    ta, acc = _finite(t_acc_s, acc_m_s2)
     if ta is None:
         return None
-    g = reference_g(ta, acc, rests_s, full_session.t_gyro_s, full_session.gyro_rad_s)
+    g = reference_g(ta, acc, rests_s, t_gyro_s, gyro_rad_s)
     if not g > 0:
         return None
     white, hand = accelerometer_noise(ta, acc, rests_s, g)
@@ -387,14 +387,39 @@ def observe_accelerometer(full_session, moving_session, field_m, analysis, rates
     held = u[stillness(np.linalg.norm(acc, axis=1), g) >= 0.5]
     cells = np.unique(sphere_cell(held))
     spread = float(3.0 * max(c_lam[0], 0.0))
-    gyro = gyro_with_gravity(moving_session, field_m, analysis, rates_rad_s, gyro_sample_std, mag_std_unit_field,
-                             g, sigma_u)
     return AccelerometerObservability(
         g_reference_m_s2=g, still_s=float(np.sum(W)), white_noise_m_s2=white, hand_m_s2=hand,
         rank=3 * rank4, condition=float(lam[-1] / lam[0]) if lam[0] > 0 else math.inf, eigenvalues=lam / lam[-1],
         directions=directions, spread=spread, spread_eigenvalues=3.0 * c_lam, spread_weakest=weakest,
         face_s=faces, cells_visited=int(cells.size), cells=SPHERE_BANDS * SPHERE_SECTORS,
-        advice=accelerometer_advice(faces, spread, weakest), gyro=gyro, gravity_directions=held)
+        advice=accelerometer_advice(faces, spread, weakest), gyro=None, gravity_directions=held)
+
+
+def observe_accelerometer(full_session, moving_session, field_m, analysis, rates_rad_s, rests_s,
+                          gyro_sample_std: float, mag_std_unit_field: float) -> AccelerometerObservability | None:
+    """Parts 1 and 2, or None when the session has no (usable) accelerometer.
+
+    Part 1 uses every accelerometer sample of `full_session` (the rests are its best poses); part 2 the span the
+    gate analyses (`moving_session`), beside the field's integral."""
+    out = accelerometer_parameters(full_session.t_acc_s, full_session.acc_m_s2, rests_s, full_session.t_gyro_s,
+                                   full_session.gyro_rad_s)
+    if out is None:
+        return None
+    g = out.g_reference_m_s2
+    sigma_u = math.hypot(out.white_noise_m_s2, out.hand_m_s2) / g
+    out.gyro = gyro_with_gravity(moving_session, field_m, analysis, rates_rad_s, gyro_sample_std, mag_std_unit_field,
+                                 g, sigma_u)
+    return out
+
+
+def missing_poses(face_s: dict) -> list[str]:
+    """The poses (of FACES) gravity sat in for less than FACE_ENOUGH_S, in FACES' order."""
+    return [f for f in FACES if face_s[f] < FACE_ENOUGH_S]
+
+
+def pose_name(face: str) -> str:
+    """'+x' -> 'x up', '-x' -> 'x down' (the table's words)."""
+    return f"{face[1]} {'up' if face[0] == '+' else 'down'}"
 
 
 # --------------------------------------------------------------------------- helpers
