@@ -30,6 +30,14 @@ The fast part, on every `update()` (several times a second), costs O(1) per new 
 - **coverage**: the equal-area sphere cells of the field directions (`observability.report.sphere_cell`),
   marked as readings arrive and recounted when the fit changes.
 
+- **the accelerometer** (when the stream carries `ax ay az`): what `magyro observe` says of its 12 parameters,
+  `gravity.accelerometer_parameters` itself (the poses held, the rank, the spread, the advice) on every
+  accelerometer sample so far, refreshed every `ACC_EVERY_S` seconds of data and never sooner than
+  `ACC_COST_FACTOR` times its last cost (so it takes at most a tenth of a live stream's time, whatever its
+  length). Live it is given no rests (g is read where the gyro turns slowest, the white noise from third
+  differences: `reference_g`'s and `accelerometer_noise`'s own fallbacks, one O(n) pass each); `update(final=True)`
+  (the watch's end) gives it the rests `magyro observe` finds, so the last status is observe's section.
+
 The slow part, the predicted one-sigma of every gyro parameter, is `magyro observe`'s own
 (`magyro.observe` on the session so far: the recording check, rests, ellipsoid, Gauss-Newton
 information of the joint problem), run by a `Predictor` in a background process (or thread, or
@@ -64,6 +72,8 @@ TURN_DEG = 90               # the turn the instruction asks for
 END_REST_S = 2.0            # after ENOUGH, the device is put down this long before the recording stops: the end
                             # rest (front.rests) gives the bias check and, with the start rest, the noise levels
 AXES = "xyz"
+ACC_EVERY_S = FIT_EVERY_S   # the accelerometer's part is recomputed every this many seconds of data ...
+ACC_COST_FACTOR = 10.0      # ... and at most every this many times its last cost (a tenth of a live stream's time)
 
 
 # --------------------------------------------------------------------------- growing arrays
@@ -120,6 +130,8 @@ class Status:
     enough: bool                    # the latest prediction meets every target
     enough_at_s: float | None       # session time of the data end of the first prediction that met them
     still_s: float = 0.0            # how long the gyro has been still at the end of the data (s; 0 before ENOUGH)
+    accelerometer: object = None    # gravity.AccelerometerObservability (its 12 parameters) of the data so far, or None
+    acc_samples: int = 0
 
     @property
     def predicted(self) -> dict | None:
@@ -142,7 +154,20 @@ class Status:
             "verdict": None if p is None else p.verdict, "targets": self.targets,
             "enough": self.enough, "enough_at_s": self.enough_at_s, "still_s": round(self.still_s, 6),
             "instruction": self.instruction,
-        }
+        } | ({} if self.accelerometer is None else {"accelerometer": accelerometer_json(self.accelerometer,
+                                                                                       self.acc_samples)})
+
+
+def accelerometer_json(acc, samples: int) -> dict:
+    """The accelerometer's part of a status line: poses held (s), rank, spread, the poses missing and observe's
+    advice."""
+    from magyro.observability.gravity import FACES, missing_poses
+
+    return {"samples": samples, "rank": int(acc.rank), "condition": acc.condition if math.isfinite(acc.condition)
+            else None, "spread": round(acc.spread, 6),
+            "poses_s": {f: round(acc.face_s[f], 6) for f in FACES}, "missing_poses": missing_poses(acc.face_s),
+            "sphere_fraction": round(acc.sphere_fraction, 6), "g_reference_m_s2": acc.g_reference_m_s2,
+            "advice": list(acc.advice)}
 
 
 def enough_instruction(still_s: float) -> str:
@@ -157,7 +182,8 @@ def enough_instruction(still_s: float) -> str:
 
 
 class ExcitationMonitor:
-    """Feed samples with `add(gyro_rows, mag_rows)` (rows (t, x, y, z), gyro in rad/s), call `update()`.
+    """Feed samples with `add(gyro_rows, mag_rows, acc_rows)` (rows (t, x, y, z), gyro in rad/s, accelerometer
+    in m/s^2), call `update()`.
 
     `predictor`: a `Predictor` (None: no prediction, rank and coverage only).
     """
@@ -174,6 +200,12 @@ class ExcitationMonitor:
         self.source = source
         self.gyro = _Rows()
         self.mag = _Rows()
+        self.acc = _Rows()
+        self.gravity = None                    # gravity.AccelerometerObservability of the accelerometer so far
+        self._gravity_n = 0                    # accelerometer samples it was computed from
+        self._gravity_exact = False            # ... with observe's rests (the watch's end)
+        self._next_acc_t = -math.inf
+        self.acc_seconds = []                  # the cost of each recomputation (s, wall clock)
         self.G = np.zeros((16, 16))            # integral of z z^T dt, z = ytilde (x) q
         self._done = 0                         # gyro samples integrated (or left out before the first reading)
         self._prev_t: float | None = None
@@ -191,15 +223,17 @@ class ExcitationMonitor:
         self.status: Status | None = None
 
     # ------------------------------------------------------------------ input
-    def add(self, gyro_rows=(), mag_rows=()) -> None:
+    def add(self, gyro_rows=(), mag_rows=(), acc_rows=()) -> None:
         if len(gyro_rows):
             self.gyro.extend(gyro_rows)
         if len(mag_rows):
             self.mag.extend(mag_rows)
+        if len(acc_rows):
+            self.acc.extend(acc_rows)
 
     @property
     def t_last(self) -> float | None:
-        lasts = [r.a[r.n - 1, 0] for r in (self.gyro, self.mag) if r.n]
+        lasts = [r.a[r.n - 1, 0] for r in (self.gyro, self.mag, self.acc) if r.n]
         return max(lasts) if lasts else None
 
     def session(self) -> Session | None:
@@ -207,14 +241,22 @@ class ExcitationMonitor:
         if not (self.gyro.n and self.mag.n):
             return None
         g, m = self.gyro.view().copy(), self.mag.view().copy()
+        metadata = {"gyro_unit": "rad/s", "mag_unit": self.mag_unit, "recorded_by": "magyro watch"}
+        acc = {}
+        if self.acc.n:
+            a = self.acc.view().copy()
+            acc = {"t_acc_s": a[:, 0], "acc_m_s2": a[:, 1:]}
+            metadata["acc_unit"] = "m/s^2"
         return Session(t_gyro_s=g[:, 0], gyro_rad_s=g[:, 1:], t_mag_s=m[:, 0], mag=m[:, 1:], mag_unit=self.mag_unit,
-                       source=self.source, metadata={"gyro_unit": "rad/s", "mag_unit": self.mag_unit,
-                                                     "recorded_by": "magyro watch"})
+                       source=self.source, metadata=metadata, **acc)
 
     # ------------------------------------------------------------------ the fast part
-    def update(self) -> Status:
-        """Take in the samples added since the last update; the status (prediction refreshed when due)."""
+    def update(self, final: bool = False) -> Status:
+        """Take in the samples added since the last update; the status (prediction refreshed when due).
+        `final`: the data is complete; the accelerometer's part is computed on it as `magyro observe` does."""
         t_now = self.t_last
+        if self.acc.n and (final or (t_now is not None and t_now >= self._next_acc_t)):
+            self._refresh_gravity(exact=final)
         if t_now is not None and (t_now >= self._next_fit_t or not self.noise_known):
             self._refresh_noise_and_fit()
             early = min(self.gyro.n, self.mag.n) < NOISE_WINDOW      # the noise levels settle: refresh them sooner
@@ -227,6 +269,30 @@ class ExcitationMonitor:
             status = self._status()
         self.status = status
         return status
+
+    def _refresh_gravity(self, exact: bool) -> None:
+        """`gravity.accelerometer_parameters` on every accelerometer sample so far (module docstring)."""
+        import time
+
+        from magyro.observability.gravity import accelerometer_parameters
+
+        if self._gravity_n == self.acc.n and (self._gravity_exact or not exact):
+            return
+        start = time.perf_counter()
+        rests_s = []
+        if exact:
+            session = self.session()
+            if session is not None:
+                from magyro.front.rests import find_rests
+                rests_s = find_rests(session).segments_s
+        a, g = self.acc.view(), self.gyro.view()
+        self.gravity = accelerometer_parameters(a[:, 0], a[:, 1:], rests_s, g[:, 0] if len(g) else None,
+                                                g[:, 1:] if len(g) else None)
+        self._gravity_n, self._gravity_exact = self.acc.n, exact
+        cost = time.perf_counter() - start
+        self.acc_seconds.append(cost)
+        every = EARLY_REFRESH_S if self.acc.n < NOISE_WINDOW else ACC_EVERY_S
+        self._next_acc_t = float(a[-1, 0]) + max(every, ACC_COST_FACTOR * cost)
 
     def _integrate(self) -> None:
         n_mag = self.mag.n
@@ -358,7 +424,7 @@ class ExcitationMonitor:
             instruction=enough_instruction(still_s) if enough else instruction,
             detail=detail, targets=targets_dict(self.targets), prediction=p,
             predicting=bool(self.predictor is not None and self.predictor.busy), enough=enough,
-            enough_at_s=self.enough_at_s, still_s=still_s)
+            enough_at_s=self.enough_at_s, still_s=still_s, accelerometer=self.gravity, acc_samples=self.acc.n)
 
     def still_at_end_s(self) -> float:
         """How long the gyro has been still at the end of the data (the rests' own rule, `front.rests`)."""
