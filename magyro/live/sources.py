@@ -142,14 +142,12 @@ class LineParser:
                 continue
             if len(values) == 4:
                 values += [None, None, None]
-            if len(values) == 7:
-                values += [None, None, None]
-            if len(values) != 10 or values[0] is None:
+            if len(values) not in (7, 10) or values[0] is None:
                 self._bad(line)
                 continue
             t = values[0]
-            g, m, a = values[1:4], values[4:7], values[7:10]
-            has_g, has_m, has_a = _complete(g), _complete(m), _complete(a)
+            g, m, a = values[1:4], values[4:7], values[7:10]     # a: [] without accelerometer fields
+            has_g, has_m, has_a = _complete(g), _complete(m), bool(a) and _complete(a)
             if (not has_g and any(v is not None for v in g)) or (not has_m and any(v is not None for v in m)) \
                     or (not has_a and any(v is not None for v in a)) \
                     or not (has_g or has_m or has_a) or not all(math.isfinite(v) for v in values if v is not None) \
