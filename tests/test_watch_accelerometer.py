@@ -179,3 +179,33 @@ def test_the_live_line_says_the_accelerometer_only_when_there_is_one(broad02):
     assert plain_line(a).startswith(plain_line(b))
     assert "accelerometer" not in plain_line(b) and "accelerometer" not in b.to_json_dict()
     assert a.to_json_dict()["accelerometer"]["rank"] == 9
+
+
+def test_the_accelerometer_s_part_takes_a_bounded_share_of_the_stream(broad02):
+    """Recomputed every ACC_EVERY_S of data, never sooner than ACC_COST_FACTOR times its last cost: a part that
+    takes 0.5 s waits 5 s of data, so it takes at most a tenth of a live stream's time however long the recording."""
+    from magyro.live import monitor as live_monitor
+
+    s = broad02.within(broad02.t_gyro_s[0], 80.0)
+    rows = lambda t, x: np.column_stack([t, x])  # noqa: E731
+    mon = ExcitationMonitor()
+    mon.add(rows(s.t_gyro_s, s.gyro_rad_s), rows(s.t_mag_s, s.mag), rows(s.t_acc_s, s.acc_m_s2))
+    mon.update()
+    assert len(mon.acc_seconds) == 1
+    assert mon._next_acc_t >= s.t_acc_s[-1] + live_monitor.ACC_EVERY_S
+    clock = iter([0.0, 0.5])     # the next recomputation "takes" 0.5 s
+    with mock.patch("time.perf_counter", lambda: next(clock)):
+        mon._refresh_gravity(exact=True)
+    assert mon._next_acc_t == pytest.approx(s.t_acc_s[-1] + live_monitor.ACC_COST_FACTOR * 0.5)
+    status = mon.update()        # no new data, not due: the part is the exact one, kept
+    assert len(mon.acc_seconds) == 2 and status.accelerometer is mon.gravity
+
+
+def test_an_accelerometer_that_reads_nothing_does_not_stop_the_watch(broad02):
+    s = broad02.within(broad02.t_gyro_s[0], 45.0)
+    rows = lambda t, x: np.column_stack([t, x])  # noqa: E731
+    mon = ExcitationMonitor()
+    mon.add(rows(s.t_gyro_s, s.gyro_rad_s), rows(s.t_mag_s, s.mag), rows(s.t_acc_s, 0.0 * s.acc_m_s2))
+    status = mon.update()
+    assert status.accelerometer is None or "accelerometer" in json.dumps(status.to_json_dict(), allow_nan=False)
+    assert mon.session().acc_m_s2.shape == s.acc_m_s2.shape

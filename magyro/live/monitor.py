@@ -163,10 +163,13 @@ def accelerometer_json(acc, samples: int) -> dict:
     advice."""
     from magyro.observability.gravity import FACES, missing_poses
 
-    return {"samples": samples, "rank": int(acc.rank), "condition": acc.condition if math.isfinite(acc.condition)
-            else None, "spread": round(acc.spread, 6),
-            "poses_s": {f: round(acc.face_s[f], 6) for f in FACES}, "missing_poses": missing_poses(acc.face_s),
-            "sphere_fraction": round(acc.sphere_fraction, 6), "g_reference_m_s2": acc.g_reference_m_s2,
+    def num(x):     # the status lines are strict JSON: a value that is not finite is null
+        x = float(x)
+        return round(x, 6) if math.isfinite(x) else None
+
+    return {"samples": samples, "rank": int(acc.rank), "condition": num(acc.condition), "spread": num(acc.spread),
+            "poses_s": {f: num(acc.face_s[f]) for f in FACES}, "missing_poses": missing_poses(acc.face_s),
+            "sphere_fraction": num(acc.sphere_fraction), "g_reference_m_s2": num(acc.g_reference_m_s2),
             "advice": list(acc.advice)}
 
 
@@ -286,8 +289,11 @@ class ExcitationMonitor:
                 from magyro.front.rests import find_rests
                 rests_s = find_rests(session).segments_s
         a, g = self.acc.view(), self.gyro.view()
-        self.gravity = accelerometer_parameters(a[:, 0], a[:, 1:], rests_s, g[:, 0] if len(g) else None,
-                                                g[:, 1:] if len(g) else None)
+        try:
+            self.gravity = accelerometer_parameters(a[:, 0], a[:, 1:], rests_s, g[:, 0] if len(g) else None,
+                                                    g[:, 1:] if len(g) else None)
+        except (np.linalg.LinAlgError, ValueError, ZeroDivisionError):   # readings it cannot use (all zero, ...):
+            self.gravity = None                                           # the watch goes on without its part
         self._gravity_n, self._gravity_exact = self.acc.n, exact
         cost = time.perf_counter() - start
         self.acc_seconds.append(cost)
