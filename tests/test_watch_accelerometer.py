@@ -209,3 +209,24 @@ def test_an_accelerometer_that_reads_nothing_does_not_stop_the_watch(broad02):
     status = mon.update()
     assert status.accelerometer is None or "accelerometer" in json.dumps(status.to_json_dict(), allow_nan=False)
     assert mon.session().acc_m_s2.shape == s.acc_m_s2.shape
+
+
+@pytest.mark.parametrize("most", [20000, 3000])
+def test_live_it_reads_every_n_th_sample_and_says_the_same(broad02, most):
+    """Past ACC_MAX_SAMPLES the live part reads every n-th sample (its cost then independent of the length; BROAD 02
+    has 33994 samples: every 2nd, and with 3000 every 12th): the same rank and poses to hold, every pose's seconds
+    within 2 % (or 0.1 s) of all samples' (no rests given either way)."""
+    from magyro.observability.gravity import accelerometer_parameters
+
+    rows = lambda t, x: np.column_stack([t, x])  # noqa: E731
+    mon = ExcitationMonitor()
+    mon.add(rows(broad02.t_gyro_s, broad02.gyro_rad_s), rows(broad02.t_mag_s, broad02.mag),
+            rows(broad02.t_acc_s, broad02.acc_m_s2))
+    with mock.patch("magyro.live.monitor.ACC_MAX_SAMPLES", most):
+        live = mon.update().accelerometer
+    whole = accelerometer_parameters(broad02.t_acc_s, broad02.acc_m_s2, [], broad02.t_gyro_s, broad02.gyro_rad_s)
+    assert live.rank == whole.rank == 12
+    assert missing_poses(live.face_s) == missing_poses(whole.face_s) == ["-x"]
+    for f in FACES:
+        assert live.face_s[f] == pytest.approx(whole.face_s[f], rel=0.02, abs=0.1), f
+    assert live.g_reference_m_s2 == pytest.approx(whole.g_reference_m_s2, rel=1e-3)

@@ -31,12 +31,15 @@ The fast part, on every `update()` (several times a second), costs O(1) per new 
   marked as readings arrive and recounted when the fit changes.
 
 - **the accelerometer** (when the stream carries `ax ay az`): what `magyro observe` says of its 12 parameters,
-  `gravity.accelerometer_parameters` itself (the poses held, the rank, the spread, the advice) on every
-  accelerometer sample so far, refreshed every `ACC_EVERY_S` seconds of data and never sooner than
-  `ACC_COST_FACTOR` times its last cost (so it takes at most a tenth of a live stream's time, whatever its
-  length). Live it is given no rests (g is read where the gyro turns slowest, the white noise from third
-  differences: `reference_g`'s and `accelerometer_noise`'s own fallbacks, one O(n) pass each); `update(final=True)`
-  (the watch's end) gives it the rests `magyro observe` finds, so the last status is observe's section.
+  `gravity.accelerometer_parameters` itself (the poses held, the rank, the spread, the advice) on the
+  accelerometer samples so far, refreshed every `ACC_EVERY_S` seconds of data and never sooner than
+  `ACC_COST_FACTOR` times its last cost. Live it reads every sample up to `ACC_MAX_SAMPLES`, then every n-th
+  sample, at most `ACC_MAX_SAMPLES` of them (the seconds per pose and the information are integrals over time: they
+  hardly change; the white noise then comes from the latest `NOISE_WINDOW` consecutive samples), so that one
+  recomputation costs the same whatever the recording's length. Live it is given no rests (g is read where the
+  gyro turns slowest, the white noise from third differences: `reference_g`'s and `accelerometer_noise`'s own
+  fallbacks); `update(final=True)` (the watch's end) reads every sample with the rests `magyro observe` finds, so
+  the last status is observe's section.
 
 The slow part, the predicted one-sigma of every gyro parameter, is `magyro observe`'s own
 (`magyro.observe` on the session so far: the recording check, rests, ellipsoid, Gauss-Newton
@@ -74,6 +77,7 @@ END_REST_S = 2.0            # after ENOUGH, the device is put down this long bef
 AXES = "xyz"
 ACC_EVERY_S = FIT_EVERY_S   # the accelerometer's part is recomputed every this many seconds of data ...
 ACC_COST_FACTOR = 10.0      # ... and at most every this many times its last cost (a tenth of a live stream's time)
+ACC_MAX_SAMPLES = 20000     # live, it reads every n-th sample, at most this many (its cost bounded: ~20 ms)
 
 
 # --------------------------------------------------------------------------- growing arrays
@@ -277,7 +281,7 @@ class ExcitationMonitor:
         """`gravity.accelerometer_parameters` on every accelerometer sample so far (module docstring)."""
         import time
 
-        from magyro.observability.gravity import accelerometer_parameters
+        from magyro.observability.gravity import accelerometer_parameters, white_noise_m_s2
 
         if self._gravity_n == self.acc.n and (self._gravity_exact or not exact):
             return
@@ -289,9 +293,13 @@ class ExcitationMonitor:
                 from magyro.front.rests import find_rests
                 rests_s = find_rests(session).segments_s
         a, g = self.acc.view(), self.gyro.view()
+        white = None
+        if not exact and len(a) > ACC_MAX_SAMPLES:
+            white = white_noise_m_s2(a[-NOISE_WINDOW:, 1:])        # from consecutive samples, not every n-th
+            a, g = a[:: -(-len(a) // ACC_MAX_SAMPLES)], g[:: max(1, -(-len(g) // ACC_MAX_SAMPLES))]
         try:
             self.gravity = accelerometer_parameters(a[:, 0], a[:, 1:], rests_s, g[:, 0] if len(g) else None,
-                                                    g[:, 1:] if len(g) else None)
+                                                    g[:, 1:] if len(g) else None, white_m_s2=white)
         except (np.linalg.LinAlgError, ValueError, ZeroDivisionError):   # readings it cannot use (all zero, ...):
             self.gravity = None                                           # the watch goes on without its part
         self._gravity_n, self._gravity_exact = self.acc.n, exact

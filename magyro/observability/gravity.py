@@ -254,18 +254,25 @@ def describe_acc_direction(v: np.ndarray) -> str:
     return text
 
 
-def accelerometer_noise(t_s, acc, rests_s, g: float) -> tuple[float, float]:
-    """(white noise per sample, the hand's RMS along gravity), m/s^2."""
+def white_noise_m_s2(acc) -> float:
+    """The white noise per sample from robust third differences (no rests needed), m/s^2."""
+    from magyro.front.differences import white_noise_std
+    return float(np.sqrt(np.mean(white_noise_std(acc) ** 2)))
+
+
+def accelerometer_noise(t_s, acc, rests_s, g: float, white: float | None = None) -> tuple[float, float]:
+    """(white noise per sample, the hand's RMS along gravity), m/s^2. `white` given: taken as it is."""
     still = []
-    for a, b in rests_s:
+    for a, b in (rests_s if white is None else ()):
         x = acc[(t_s >= a) & (t_s <= b)]
         if len(x) >= 10:
             still.append(x - x.mean(axis=0))
-    if still:
+    if white is not None:
+        white = float(white)
+    elif still:
         white = float(np.sqrt(np.mean(np.concatenate(still) ** 2)))
     else:
-        from magyro.front.differences import white_noise_std
-        white = float(np.sqrt(np.mean(white_noise_std(acc) ** 2)))
+        white = white_noise_m_s2(acc)
     norm = np.linalg.norm(acc, axis=1)
     w = stillness(norm, g)
     ms = float(np.sum(w * (norm - g) ** 2) / max(np.sum(w), 1e-300))
@@ -357,12 +364,14 @@ def combined_rank(lam, V, *references) -> int:
 # --------------------------------------------------------------------------- both
 
 
-def accelerometer_parameters(t_acc_s, acc_m_s2, rests_s, t_gyro_s=None, gyro_rad_s=None
-                             ) -> AccelerometerObservability | None:
+def accelerometer_parameters(t_acc_s, acc_m_s2, rests_s, t_gyro_s=None, gyro_rad_s=None,
+                             white_m_s2: float | None = None) -> AccelerometerObservability | None:
     """Part 1 alone (the accelerometer's own 12 parameters: poses, rank, spread, sphere, advice; `gyro` None), from
     every accelerometer sample, or None when there is no usable accelerometer. `rests_s` are the gyro's rests (the
     reference g and the white noise are read there; none: `reference_g`'s and `accelerometer_noise`'s fallbacks).
-    `observe_accelerometer` adds part 2 to it; `magyro watch` calls it on the data received so far."""
+    `white_m_s2` given: the white noise per sample, not estimated here (`magyro watch` gives it from its latest
+    consecutive samples when it reads every n-th). `observe_accelerometer` adds part 2 to it; `magyro watch` calls it
+    on the data received so far."""
     from magyro.observability.report import SPHERE_BANDS, SPHERE_SECTORS, sphere_cell
 
     ta, acc = _finite(t_acc_s, acc_m_s2)
@@ -371,7 +380,7 @@ def accelerometer_parameters(t_acc_s, acc_m_s2, rests_s, t_gyro_s=None, gyro_rad
     g = reference_g(ta, acc, rests_s, t_gyro_s, gyro_rad_s)
     if not g > 0:
         return None
-    white, hand = accelerometer_noise(ta, acc, rests_s, g)
+    white, hand = accelerometer_noise(ta, acc, rests_s, g, white_m_s2)
     sigma_u = math.hypot(white, hand) / g
     J, N, W, u = accelerometer_information(ta, acc, g, sigma_u)
     lam, V = np.linalg.eigh(J)
