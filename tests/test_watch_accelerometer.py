@@ -184,21 +184,22 @@ def test_the_live_line_says_the_accelerometer_only_when_there_is_one(broad02):
 def test_the_accelerometer_s_part_takes_a_bounded_share_of_the_stream(broad02):
     """Recomputed every ACC_EVERY_S of data, never sooner than ACC_COST_FACTOR times its last cost: a part that
     takes 0.5 s waits 5 s of data, so it takes at most a tenth of a live stream's time however long the recording."""
-    from magyro.live import monitor as live_monitor
+    from magyro.live import accelerometer as part
 
     s = broad02.within(broad02.t_gyro_s[0], 80.0)
     rows = lambda t, x: np.column_stack([t, x])  # noqa: E731
     mon = ExcitationMonitor()
     mon.add(rows(s.t_gyro_s, s.gyro_rad_s), rows(s.t_mag_s, s.mag), rows(s.t_acc_s, s.acc_m_s2))
     mon.update()
-    assert len(mon.acc_seconds) == 1
-    assert mon._next_acc_t >= s.t_acc_s[-1] + live_monitor.ACC_EVERY_S
+    assert len(mon.acc_part.seconds) == 1
+    assert mon.acc_part.next_t >= s.t_acc_s[-1] + part.ACC_EVERY_S
     clock = iter([0.0, 0.5])     # the next recomputation "takes" 0.5 s
-    with mock.patch("time.perf_counter", lambda: next(clock)):
-        mon._refresh_gravity(exact=True)
-    assert mon._next_acc_t == pytest.approx(s.t_acc_s[-1] + live_monitor.ACC_COST_FACTOR * 0.5)
-    status = mon.update()        # no new data, not due: the part is the exact one, kept
-    assert len(mon.acc_seconds) == 2 and status.accelerometer is mon.gravity
+    mon.acc_part.clock = lambda: next(clock)
+    status = mon.update(final=True)
+    assert mon.acc_part.next_t == pytest.approx(s.t_acc_s[-1] + part.ACC_COST_FACTOR * 0.5)
+    assert mon.acc_part.exact and status.accelerometer is mon.acc_part.gravity
+    mon.update()                 # no new data, not due: the part is the exact one, kept
+    assert len(mon.acc_part.seconds) == 2 and mon.acc_part.exact
 
 
 def test_an_accelerometer_that_reads_nothing_does_not_stop_the_watch(broad02):
@@ -222,7 +223,7 @@ def test_live_it_reads_every_n_th_sample_and_says_the_same(broad02, most):
     mon = ExcitationMonitor()
     mon.add(rows(broad02.t_gyro_s, broad02.gyro_rad_s), rows(broad02.t_mag_s, broad02.mag),
             rows(broad02.t_acc_s, broad02.acc_m_s2))
-    with mock.patch("magyro.live.monitor.ACC_MAX_SAMPLES", most):
+    with mock.patch("magyro.live.accelerometer.ACC_MAX_SAMPLES", most):
         live = mon.update().accelerometer
     whole = accelerometer_parameters(broad02.t_acc_s, broad02.acc_m_s2, [], broad02.t_gyro_s, broad02.gyro_rad_s)
     assert live.rank == whole.rank == 12

@@ -6,6 +6,8 @@
               sample), rank against the noise floor, field-direction coverage, the predicted std
               of `magyro observe` refreshed in the background, the accelerometer's poses and rank
               (`gravity.accelerometer_parameters`), and the data so far (`Status`)
+    accelerometer  `AccelerometerPart`: with `ax ay az` in the stream, `magyro observe`'s accelerometer
+              section (poses held, rank of its 12 parameters, poses to hold) on the data so far
     display   the terminal view (rich Live on stderr, or plain lines) and the `--status` JSON lines
     stream    `stream_session`: a session written as CSV lines in (accelerated) real time, for
               `magyro simulate PROBLEM --stream`

@@ -50,12 +50,12 @@ def plain_line(status: Status, counts=None) -> str:
 def accelerometer_text(acc, advice: bool = False) -> str:
     """The accelerometer in one line: the rank of its 12 parameters, the poses held (s, weighted by stillness) and
     the poses to hold next (observe's rule, `gravity.missing_poses`); `advice`: observe's advice in full."""
-    from magyro.observability.gravity import FACES, SPREAD_ENOUGH, body_direction, missing_poses, pose_name
+    from magyro.observability.gravity import FACES, SPREAD_ENOUGH, body_direction, missing_poses
 
     poses = " ".join(f"{f} {acc.face_s[f]:.1f}" for f in FACES)
     missing = missing_poses(acc.face_s)
     if missing:
-        nxt = "hold still with " + ", ".join(pose_name(f) for f in missing)
+        nxt = "hold still with " + ", ".join(f"{f[1]} {'up' if f[0] == '+' else 'down'}" for f in missing)
     elif acc.spread < SPREAD_ENOUGH:
         nxt = f"turn its {body_direction(acc.spread_weakest)} axis up and down"
     else:

@@ -29,17 +29,7 @@ The fast part, on every `update()` (several times a second), costs O(1) per new 
   of the last `NOISE_WINDOW` samples, refreshed with the fit.
 - **coverage**: the equal-area sphere cells of the field directions (`observability.report.sphere_cell`),
   marked as readings arrive and recounted when the fit changes.
-
-- **the accelerometer** (when the stream carries `ax ay az`): what `magyro observe` says of its 12 parameters,
-  `gravity.accelerometer_parameters` itself (the poses held, the rank, the spread, the advice) on the
-  accelerometer samples so far, refreshed every `ACC_EVERY_S` seconds of data and never sooner than
-  `ACC_COST_FACTOR` times its last cost. Live it reads every sample up to `ACC_MAX_SAMPLES`, then every n-th
-  sample, at most `ACC_MAX_SAMPLES` of them (the seconds per pose and the information are integrals over time: they
-  hardly change; the white noise then comes from the latest `NOISE_WINDOW` consecutive samples), so that one
-  recomputation costs the same whatever the recording's length. Live it is given no rests (g is read where the
-  gyro turns slowest, the white noise from third differences: `reference_g`'s and `accelerometer_noise`'s own
-  fallbacks); `update(final=True)` (the watch's end) reads every sample with the rests `magyro observe` finds, so
-  the last status is observe's section.
+- **the accelerometer** (when the stream carries `ax ay az`): `magyro.live.accelerometer`.
 
 The slow part, the predicted one-sigma of every gyro parameter, is `magyro observe`'s own
 (`magyro.observe` on the session so far: the recording check, rests, ellipsoid, Gauss-Newton
@@ -60,6 +50,7 @@ from magyro.errors import InputError
 from magyro.front import ellipsoid
 from magyro.front.noise import white_noise_std
 from magyro.front.rests import WINDOW_S, still_prefix_s
+from magyro.live.accelerometer import AccelerometerPart, accelerometer_json
 from magyro.observability.advice import direction_advice
 from magyro.live.prediction import GROUPS, Prediction, Predictor, meets, targets_dict
 from magyro.observability.gate import FLOOR_FACTOR, NUMERICAL_RTOL, directional_rank
@@ -75,9 +66,6 @@ TURN_DEG = 90               # the turn the instruction asks for
 END_REST_S = 2.0            # after ENOUGH, the device is put down this long before the recording stops: the end
                             # rest (front.rests) gives the bias check and, with the start rest, the noise levels
 AXES = "xyz"
-ACC_EVERY_S = FIT_EVERY_S   # the accelerometer's part is recomputed every this many seconds of data ...
-ACC_COST_FACTOR = 10.0      # ... and at most every this many times its last cost (a tenth of a live stream's time)
-ACC_MAX_SAMPLES = 20000     # live, it reads every n-th sample, at most this many (its cost bounded: ~20 ms)
 
 
 # --------------------------------------------------------------------------- growing arrays
@@ -162,21 +150,6 @@ class Status:
                                                                                        self.acc_samples)})
 
 
-def accelerometer_json(acc, samples: int) -> dict:
-    """The accelerometer's part of a status line: poses held (s), rank, spread, the poses missing and observe's
-    advice."""
-    from magyro.observability.gravity import FACES, missing_poses
-
-    def num(x):     # the status lines are strict JSON: a value that is not finite is null
-        x = float(x)
-        return round(x, 6) if math.isfinite(x) else None
-
-    return {"samples": samples, "rank": int(acc.rank), "condition": num(acc.condition), "spread": num(acc.spread),
-            "poses_s": {f: num(acc.face_s[f]) for f in FACES}, "missing_poses": missing_poses(acc.face_s),
-            "sphere_fraction": num(acc.sphere_fraction), "g_reference_m_s2": num(acc.g_reference_m_s2),
-            "advice": list(acc.advice)}
-
-
 def enough_instruction(still_s: float) -> str:
     """ENOUGH's instruction: rest the device first (`END_REST_S`), then stop."""
     if still_s >= END_REST_S:
@@ -208,11 +181,7 @@ class ExcitationMonitor:
         self.gyro = _Rows()
         self.mag = _Rows()
         self.acc = _Rows()
-        self.gravity = None                    # gravity.AccelerometerObservability of the accelerometer so far
-        self._gravity_n = 0                    # accelerometer samples it was computed from
-        self._gravity_exact = False            # ... with observe's rests (the watch's end)
-        self._next_acc_t = -math.inf
-        self.acc_seconds = []                  # the cost of each recomputation (s, wall clock)
+        self.acc_part = AccelerometerPart()    # its 12 parameters on the data so far (magyro.live.accelerometer)
         self.G = np.zeros((16, 16))            # integral of z z^T dt, z = ytilde (x) q
         self._done = 0                         # gyro samples integrated (or left out before the first reading)
         self._prev_t: float | None = None
@@ -262,8 +231,9 @@ class ExcitationMonitor:
         """Take in the samples added since the last update; the status (prediction refreshed when due).
         `final`: the data is complete; the accelerometer's part is computed on it as `magyro observe` does."""
         t_now = self.t_last
-        if self.acc.n and (final or (t_now is not None and t_now >= self._next_acc_t)):
-            self._refresh_gravity(exact=final)
+        if self.acc.n and self.acc_part.due(t_now, final):
+            self.acc_part.refresh(self.acc.view(), self.gyro.view(), final, self.session, NOISE_WINDOW,
+                                  EARLY_REFRESH_S, NOISE_WINDOW)
         if t_now is not None and (t_now >= self._next_fit_t or not self.noise_known):
             self._refresh_noise_and_fit()
             early = min(self.gyro.n, self.mag.n) < NOISE_WINDOW      # the noise levels settle: refresh them sooner
@@ -276,37 +246,6 @@ class ExcitationMonitor:
             status = self._status()
         self.status = status
         return status
-
-    def _refresh_gravity(self, exact: bool) -> None:
-        """`gravity.accelerometer_parameters` on every accelerometer sample so far (module docstring)."""
-        import time
-
-        from magyro.observability.gravity import accelerometer_parameters, white_noise_m_s2
-
-        if self._gravity_n == self.acc.n and (self._gravity_exact or not exact):
-            return
-        start = time.perf_counter()
-        rests_s = []
-        if exact:
-            session = self.session()
-            if session is not None:
-                from magyro.front.rests import find_rests
-                rests_s = find_rests(session).segments_s
-        a, g = self.acc.view(), self.gyro.view()
-        white = None
-        if not exact and len(a) > ACC_MAX_SAMPLES:
-            white = white_noise_m_s2(a[-NOISE_WINDOW:, 1:])        # from consecutive samples, not every n-th
-            a, g = a[:: -(-len(a) // ACC_MAX_SAMPLES)], g[:: max(1, -(-len(g) // ACC_MAX_SAMPLES))]
-        try:
-            self.gravity = accelerometer_parameters(a[:, 0], a[:, 1:], rests_s, g[:, 0] if len(g) else None,
-                                                    g[:, 1:] if len(g) else None, white_m_s2=white)
-        except (np.linalg.LinAlgError, ValueError, ZeroDivisionError):   # readings it cannot use (all zero, ...):
-            self.gravity = None                                           # the watch goes on without its part
-        self._gravity_n, self._gravity_exact = self.acc.n, exact
-        cost = time.perf_counter() - start
-        self.acc_seconds.append(cost)
-        every = EARLY_REFRESH_S if self.acc.n < NOISE_WINDOW else ACC_EVERY_S
-        self._next_acc_t = float(a[-1, 0]) + max(every, ACC_COST_FACTOR * cost)
 
     def _integrate(self) -> None:
         n_mag = self.mag.n
@@ -438,7 +377,8 @@ class ExcitationMonitor:
             instruction=enough_instruction(still_s) if enough else instruction,
             detail=detail, targets=targets_dict(self.targets), prediction=p,
             predicting=bool(self.predictor is not None and self.predictor.busy), enough=enough,
-            enough_at_s=self.enough_at_s, still_s=still_s, accelerometer=self.gravity, acc_samples=self.acc.n)
+            enough_at_s=self.enough_at_s, still_s=still_s, accelerometer=self.acc_part.gravity,
+            acc_samples=self.acc.n)
 
     def still_at_end_s(self) -> float:
         """How long the gyro has been still at the end of the data (the rests' own rule, `front.rests`)."""

@@ -148,7 +148,7 @@ class AccelerometerObservability:
         out = ["accelerometer (gravity, a second reference vector; the verdict above is the field's alone):",
                f"  gravity's directions in the body: {100 * self.sphere_fraction:.0f}% of the sphere "
                f"({self.cells_visited} of {self.cells} cells); poses held (s, weighted by stillness):",
-               "    " + ", ".join(f"{pose_name(f)} {self.face_s[f]:.1f}" for f in FACES),
+               "    " + ", ".join(f"{f[1]} {'up' if f[0] == '+' else 'down'} {self.face_s[f]:.1f}" for f in FACES),
                f"  its 12 parameters (f = A y + b): rank {self.rank} of 12, condition {_fmt(self.condition)}; "
                f"spread {self.spread:.2f} (1 = six poses; weakest along {body_direction(self.spread_weakest)})",
                f"    weakest: {self.directions[0][4]} (eigenvalue {self.directions[0][0]:.2g} of the largest)"]
@@ -263,16 +263,12 @@ def white_noise_m_s2(acc) -> float:
 def accelerometer_noise(t_s, acc, rests_s, g: float, white: float | None = None) -> tuple[float, float]:
     """(white noise per sample, the hand's RMS along gravity), m/s^2. `white` given: taken as it is."""
     still = []
-    for a, b in (rests_s if white is None else ()):
+    for a, b in rests_s:
         x = acc[(t_s >= a) & (t_s <= b)]
         if len(x) >= 10:
             still.append(x - x.mean(axis=0))
-    if white is not None:
-        white = float(white)
-    elif still:
-        white = float(np.sqrt(np.mean(np.concatenate(still) ** 2)))
-    else:
-        white = white_noise_m_s2(acc)
+    if white is None:
+        white = float(np.sqrt(np.mean(np.concatenate(still) ** 2))) if still else white_noise_m_s2(acc)
     norm = np.linalg.norm(acc, axis=1)
     w = stillness(norm, g)
     ms = float(np.sum(w * (norm - g) ** 2) / max(np.sum(w), 1e-300))
@@ -366,12 +362,9 @@ def combined_rank(lam, V, *references) -> int:
 
 def accelerometer_parameters(t_acc_s, acc_m_s2, rests_s, t_gyro_s=None, gyro_rad_s=None,
                              white_m_s2: float | None = None) -> AccelerometerObservability | None:
-    """Part 1 alone (the accelerometer's own 12 parameters: poses, rank, spread, sphere, advice; `gyro` None), from
-    every accelerometer sample, or None when there is no usable accelerometer. `rests_s` are the gyro's rests (the
-    reference g and the white noise are read there; none: `reference_g`'s and `accelerometer_noise`'s fallbacks).
-    `white_m_s2` given: the white noise per sample, not estimated here (`magyro watch` gives it from its latest
-    consecutive samples when it reads every n-th). `observe_accelerometer` adds part 2 to it; `magyro watch` calls it
-    on the data received so far."""
+    """Part 1 alone (`gyro` None), or None without a usable accelerometer; g and the white noise are read at the
+    gyro's `rests_s` (none: `reference_g`'s and `accelerometer_noise`'s fallbacks; `white_m_s2`: given). Called by
+    `observe_accelerometer`, and by `magyro watch` on the data received so far."""
     from magyro.observability.report import SPHERE_BANDS, SPHERE_SECTORS, sphere_cell
 
     ta, acc = _finite(t_acc_s, acc_m_s2)
@@ -414,8 +407,7 @@ def observe_accelerometer(full_session, moving_session, field_m, analysis, rates
                                    full_session.gyro_rad_s)
     if out is None:
         return None
-    g = out.g_reference_m_s2
-    sigma_u = math.hypot(out.white_noise_m_s2, out.hand_m_s2) / g
+    g, sigma_u = out.g_reference_m_s2, math.hypot(out.white_noise_m_s2, out.hand_m_s2) / out.g_reference_m_s2
     out.gyro = gyro_with_gravity(moving_session, field_m, analysis, rates_rad_s, gyro_sample_std, mag_std_unit_field,
                                  g, sigma_u)
     return out
@@ -424,11 +416,6 @@ def observe_accelerometer(full_session, moving_session, field_m, analysis, rates
 def missing_poses(face_s: dict) -> list[str]:
     """The poses (of FACES) gravity sat in for less than FACE_ENOUGH_S, in FACES' order."""
     return [f for f in FACES if face_s[f] < FACE_ENOUGH_S]
-
-
-def pose_name(face: str) -> str:
-    """'+x' -> 'x up', '-x' -> 'x down' (the table's words)."""
-    return f"{face[1]} {'up' if face[0] == '+' else 'down'}"
 
 
 # --------------------------------------------------------------------------- helpers
