@@ -446,9 +446,9 @@ def test_watch_line_buffer_is_linear_and_capped():
     chunk = b"1" * 65536
     start = time.perf_counter()
     for _ in range(256):   # one 16 MiB line, in the reader's chunks
-        assert parser.feed(chunk) == ([], [])
+        assert parser.feed(chunk) == ([], [], [])
         assert parser._tail_bytes <= MAX_LINE_BYTES
-    gyro, mag = parser.feed(b"\n0.0,0.1,0.2,0.3,1,2,3\n")
+    gyro, mag, _ = parser.feed(b"\n0.0,0.1,0.2,0.3,1,2,3\n")
     assert time.perf_counter() - start < 2.0
     assert len(gyro) == 1 and len(mag) == 1 and parser.counts.bad == 1
 

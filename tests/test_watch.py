@@ -84,17 +84,17 @@ def staged():
 
 def test_lines_full_split_header_bad_and_units():
     p = LineParser(gyro_unit="deg/s")
-    gyro, mag = p.feed(b"t,gx,gy,gz,mx,my,mz\n0.0,1,2,3,10,20,30\n0.01,180,0,0,,,\r\n0.01,,,,11,21,31\nhello\n0.02,1,2\n")
+    gyro, mag, _ = p.feed(b"t,gx,gy,gz,mx,my,mz\n0.0,1,2,3,10,20,30\n0.01,180,0,0,,,\r\n0.01,,,,11,21,31\nhello\n0.02,1,2\n")
     assert p.counts.header == 1 and p.counts.bad == 2
     assert [r[0] for r in gyro] == [0.0, 0.01] and gyro[1][1] == pytest.approx(math.pi)
     assert mag == [(0.0, 10.0, 20.0, 30.0), (0.01, 11.0, 21.0, 31.0)]
     # a partial line waits for its end; a time that does not increase is skipped and counted
-    gyro, mag = p.feed(b"0.03,0,0,")
-    assert (gyro, mag) == ([], [])
-    gyro, mag = p.feed(b"1,,,\n0.01,0,0,0,,,\n0.04,nan,0,0,,,\n0.05,1,2,3,4,5,\n")
+    gyro, mag, acc = p.feed(b"0.03,0,0,")
+    assert (gyro, mag, acc) == ([], [], [])
+    gyro, mag, _ = p.feed(b"1,,,\n0.01,0,0,0,,,\n0.04,nan,0,0,,,\n0.05,1,2,3,4,5,\n")
     assert [r[0] for r in gyro] == [0.03] and p.counts.out_of_order == 1 and p.counts.bad == 4
-    assert p.finish() == ([], [])
-    assert p.feed(b"0.06,0,0,0") == ([], []) and len(p.finish()[0]) == 1   # the last line without its newline
+    assert p.finish() == ([], [], [])
+    assert p.feed(b"0.06,0,0,0") == ([], [], []) and len(p.finish()[0]) == 1   # the last line without its newline
 
 
 def test_stream_lines_interleave_and_read_back_exactly(staged):
@@ -104,7 +104,8 @@ def test_stream_lines_interleave_and_read_back_exactly(staged):
     text = out.getvalue().splitlines()
     assert text[0] == "t,gx,gy,gz,mx,my,mz" and text[1].endswith(",,,") and text[2].startswith("0.0,,,,")
     p = LineParser()
-    gyro, mag = p.feed(out.getvalue().encode())
+    gyro, mag, acc = p.feed(out.getvalue().encode())
+    assert acc == [] and p.counts.acc == 0
     assert np.array_equal(np.array(gyro)[:, 1:], s.gyro_rad_s) and np.array_equal(np.array(mag)[:, 1:], s.mag)
 
 

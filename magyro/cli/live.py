@@ -16,7 +16,7 @@ from magyro.cli.common import (TARGET_BIAS_OPTION, TARGET_MISALIGNMENT_OPTION, T
 
 
 def watch_command(
-    source: str = typer.Argument(..., metavar="SOURCE", help="'-' for standard input, a serial device (/dev/ttyUSB0, COM3; or any path with --serial), or a file being written (followed like tail -f). Lines: t,gx,gy,gz,mx,my,mz, or t,gx,gy,gz,,, and t,,,,mx,my,mz for sensors on lines of their own."),
+    source: str = typer.Argument(..., metavar="SOURCE", help="'-' for standard input, a serial device (/dev/ttyUSB0, COM3; or any path with --serial), or a file being written (followed like tail -f). Lines: t,gx,gy,gz,mx,my,mz, or t,gx,gy,gz,,, and t,,,,mx,my,mz for sensors on lines of their own; an accelerometer (m/s^2) as three more fields, t,gx,gy,gz,mx,my,mz,ax,ay,az or t,,,,,,,ax,ay,az."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Save what was received as a session file (.parquet or .csv), whatever stops the watch: end of input, --idle, Ctrl-C or SIGTERM."),
     status: Optional[Path] = typer.Option(None, "--status", help="Write every update as a JSON line here (t_s, rank, coverage, predicted_std per group, enough, ...)."),
     serial: bool = typer.Option(False, "--serial", help="SOURCE is a serial port (needs pyserial), whatever its name."),
@@ -35,7 +35,8 @@ def watch_command(
     """Live excitation feedback while recording: rank, coverage, predicted accuracy, the motion to make next.
 
     ENOUGH shows once magyro observe's predicted one-sigma of every gyro parameter (on the data so far)
-    is within its target. Stop with Ctrl-C; -o saves what was received. Exit 0 once the input ends or is
+    is within its target. With ax ay az it also shows the poses held, the rank of the accelerometer's
+    12 parameters and the poses to hold next (magyro observe's accelerometer section). Stop with Ctrl-C; -o saves what was received. Exit 0 once the input ends or is
     stopped (and the session, if asked, is written), 2 when the input is unusable.
     """
     from magyro.live.watch import watch

@@ -1,5 +1,8 @@
 """What `magyro watch` shows: a live panel on stderr (rich), plain lines, and the `--status` JSON lines.
 
+- With an accelerometer in the stream, one more part: its poses held (seconds with gravity within 45 deg of
+  each of +x -x +y -y +z -z), the rank of its 12 parameters and the poses still to hold, `magyro observe`'s
+  accelerometer section on the data so far (`accelerometer_text`); without, every line is as it was.
 - On a terminal (and without -q): a rich Live panel redrawn several times a second: the rank
   against the noise floor, the field-direction coverage, a table of the predicted one-sigma of
   each parameter group against its target, the instruction (the motion to make next) and ENOUGH
@@ -40,7 +43,27 @@ def plain_line(status: Status, counts=None) -> str:
     head = (f"t {status.t_s:7.1f} s  rank {status.rank:2d}/12  coverage {100 * status.coverage:3.0f}%  "
             f"std {predicted_text(status)}")
     tail = status.instruction
-    return f"magyro watch: {head}  | {tail}{skipped}"
+    acc = "" if status.accelerometer is None else "  | " + accelerometer_text(status.accelerometer)
+    return f"magyro watch: {head}  | {tail}{acc}{skipped}"
+
+
+def accelerometer_text(acc, advice: bool = False) -> str:
+    """The accelerometer in one line: the rank of its 12 parameters, the poses held (s, weighted by stillness) and
+    the poses to hold next (observe's rule, `gravity.missing_poses`); `advice`: observe's advice in full."""
+    from magyro.observability.gravity import FACES, SPREAD_ENOUGH, body_direction, missing_poses
+
+    poses = " ".join(f"{f} {acc.face_s[f]:.1f}" for f in FACES)
+    missing = missing_poses(acc.face_s)
+    if missing:
+        nxt = "hold still with " + ", ".join(f"{f[1]} {'up' if f[0] == '+' else 'down'}" for f in missing)
+    elif acc.spread < SPREAD_ENOUGH:
+        nxt = f"turn its {body_direction(acc.spread_weakest)} axis up and down"
+    else:
+        nxt = "every pose held"
+    text = f"accelerometer: rank {acc.rank}/12, poses (s) {poses}; {nxt}"
+    if advice and acc.advice:
+        text += " (" + " ".join(acc.advice) + ")"
+    return text
 
 
 class PlainDisplay:
@@ -54,7 +77,9 @@ class PlainDisplay:
         self._key = None
 
     def show(self, status: Status, counts=None) -> None:
-        key = (status.rank, status.field_source, status.enough, status.predicted is None, status.instruction[:12])
+        key = (status.rank, status.field_source, status.enough, status.predicted is None, status.instruction[:12],
+               None if status.accelerometer is None else (status.accelerometer.rank, accelerometer_text(
+                   status.accelerometer).split(";")[-1]))
         now = self.clock()
         if key != self._key or now - self._last >= self.every_s:
             print(plain_line(status, counts), file=self.stream, flush=True)
@@ -126,8 +151,14 @@ class RichDisplay:
             parts.append(Text("next: " + status.instruction, style="bold cyan"))
             if status.detail:
                 parts.append(Text(status.detail, style="dim"))
+        if status.accelerometer is not None:
+            acc = status.accelerometer
+            parts.append(Text(accelerometer_text(acc), style="bold green" if not acc.advice else "bold magenta"))
+            if acc.advice:
+                parts.append(Text(" ".join(acc.advice), style="dim"))
         if counts is not None:
-            extra = f"{counts.gyro} gyro, {counts.mag} magnetometer samples"
+            extra = f"{counts.gyro} gyro, {counts.mag} magnetometer" + (
+                f", {counts.acc} accelerometer" if counts.acc else "") + " samples"
             if counts.skipped:
                 extra += (f"; skipped {counts.header} header, {counts.bad} bad, {counts.out_of_order} out-of-order lines"
                           + (f" (last bad: {counts.last_bad!r})" if counts.last_bad else ""))

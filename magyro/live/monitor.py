@@ -29,6 +29,7 @@ The fast part, on every `update()` (several times a second), costs O(1) per new 
   of the last `NOISE_WINDOW` samples, refreshed with the fit.
 - **coverage**: the equal-area sphere cells of the field directions (`observability.report.sphere_cell`),
   marked as readings arrive and recounted when the fit changes.
+- **the accelerometer** (when the stream carries `ax ay az`): `magyro.live.accelerometer`.
 
 The slow part, the predicted one-sigma of every gyro parameter, is `magyro observe`'s own
 (`magyro.observe` on the session so far: the recording check, rests, ellipsoid, Gauss-Newton
@@ -49,6 +50,7 @@ from magyro.errors import InputError
 from magyro.front import ellipsoid
 from magyro.front.noise import white_noise_std
 from magyro.front.rests import WINDOW_S, still_prefix_s
+from magyro.live.accelerometer import AccelerometerPart, accelerometer_json
 from magyro.observability.advice import direction_advice
 from magyro.live.prediction import GROUPS, Prediction, Predictor, meets, targets_dict
 from magyro.observability.gate import FLOOR_FACTOR, NUMERICAL_RTOL, directional_rank
@@ -120,6 +122,8 @@ class Status:
     enough: bool                    # the latest prediction meets every target
     enough_at_s: float | None       # session time of the data end of the first prediction that met them
     still_s: float = 0.0            # how long the gyro has been still at the end of the data (s; 0 before ENOUGH)
+    accelerometer: object = None    # gravity.AccelerometerObservability (its 12 parameters) of the data so far, or None
+    acc_samples: int = 0
 
     @property
     def predicted(self) -> dict | None:
@@ -142,7 +146,8 @@ class Status:
             "verdict": None if p is None else p.verdict, "targets": self.targets,
             "enough": self.enough, "enough_at_s": self.enough_at_s, "still_s": round(self.still_s, 6),
             "instruction": self.instruction,
-        }
+        } | ({} if self.accelerometer is None else {"accelerometer": accelerometer_json(self.accelerometer,
+                                                                                       self.acc_samples)})
 
 
 def enough_instruction(still_s: float) -> str:
@@ -157,7 +162,8 @@ def enough_instruction(still_s: float) -> str:
 
 
 class ExcitationMonitor:
-    """Feed samples with `add(gyro_rows, mag_rows)` (rows (t, x, y, z), gyro in rad/s), call `update()`.
+    """Feed samples with `add(gyro_rows, mag_rows, acc_rows)` (rows (t, x, y, z), gyro in rad/s, accelerometer
+    in m/s^2), call `update()`.
 
     `predictor`: a `Predictor` (None: no prediction, rank and coverage only).
     """
@@ -174,6 +180,8 @@ class ExcitationMonitor:
         self.source = source
         self.gyro = _Rows()
         self.mag = _Rows()
+        self.acc = _Rows()
+        self.acc_part = AccelerometerPart()    # its 12 parameters on the data so far (magyro.live.accelerometer)
         self.G = np.zeros((16, 16))            # integral of z z^T dt, z = ytilde (x) q
         self._done = 0                         # gyro samples integrated (or left out before the first reading)
         self._prev_t: float | None = None
@@ -191,15 +199,17 @@ class ExcitationMonitor:
         self.status: Status | None = None
 
     # ------------------------------------------------------------------ input
-    def add(self, gyro_rows=(), mag_rows=()) -> None:
+    def add(self, gyro_rows=(), mag_rows=(), acc_rows=()) -> None:
         if len(gyro_rows):
             self.gyro.extend(gyro_rows)
         if len(mag_rows):
             self.mag.extend(mag_rows)
+        if len(acc_rows):
+            self.acc.extend(acc_rows)
 
     @property
     def t_last(self) -> float | None:
-        lasts = [r.a[r.n - 1, 0] for r in (self.gyro, self.mag) if r.n]
+        lasts = [r.a[r.n - 1, 0] for r in (self.gyro, self.mag, self.acc) if r.n]
         return max(lasts) if lasts else None
 
     def session(self) -> Session | None:
@@ -207,14 +217,23 @@ class ExcitationMonitor:
         if not (self.gyro.n and self.mag.n):
             return None
         g, m = self.gyro.view().copy(), self.mag.view().copy()
+        metadata = {"gyro_unit": "rad/s", "mag_unit": self.mag_unit, "recorded_by": "magyro watch"}
+        acc = {}
+        if self.acc.n:
+            a = self.acc.view().copy()
+            acc = {"t_acc_s": a[:, 0], "acc_m_s2": a[:, 1:]}
+            metadata["acc_unit"] = "m/s^2"
         return Session(t_gyro_s=g[:, 0], gyro_rad_s=g[:, 1:], t_mag_s=m[:, 0], mag=m[:, 1:], mag_unit=self.mag_unit,
-                       source=self.source, metadata={"gyro_unit": "rad/s", "mag_unit": self.mag_unit,
-                                                     "recorded_by": "magyro watch"})
+                       source=self.source, metadata=metadata, **acc)
 
     # ------------------------------------------------------------------ the fast part
-    def update(self) -> Status:
-        """Take in the samples added since the last update; the status (prediction refreshed when due)."""
+    def update(self, final: bool = False) -> Status:
+        """Take in the samples added since the last update; the status (prediction refreshed when due).
+        `final`: the data is complete; the accelerometer's part is computed on it as `magyro observe` does."""
         t_now = self.t_last
+        if self.acc.n and self.acc_part.due(t_now, final):
+            self.acc_part.refresh(self.acc.view(), self.gyro.view(), final, self.session, NOISE_WINDOW,
+                                  EARLY_REFRESH_S, NOISE_WINDOW)
         if t_now is not None and (t_now >= self._next_fit_t or not self.noise_known):
             self._refresh_noise_and_fit()
             early = min(self.gyro.n, self.mag.n) < NOISE_WINDOW      # the noise levels settle: refresh them sooner
@@ -358,7 +377,8 @@ class ExcitationMonitor:
             instruction=enough_instruction(still_s) if enough else instruction,
             detail=detail, targets=targets_dict(self.targets), prediction=p,
             predicting=bool(self.predictor is not None and self.predictor.busy), enough=enough,
-            enough_at_s=self.enough_at_s, still_s=still_s)
+            enough_at_s=self.enough_at_s, still_s=still_s, accelerometer=self.acc_part.gravity,
+            acc_samples=self.acc.n)
 
     def still_at_end_s(self) -> float:
         """How long the gyro has been still at the end of the data (the rests' own rule, `front.rests`)."""

@@ -3,7 +3,9 @@
 A line is CSV, `t,gx,gy,gz,mx,my,mz`: time in seconds, the gyro (rad/s, or deg/s with
 `--gyro-unit deg/s`), the magnetometer in any unit. Sensors sampled apart may come on lines
 of their own, the other sensor's fields left empty: `t,gx,gy,gz,,,` and `t,,,,mx,my,mz`
-(`t,gx,gy,gz` alone is a gyro line too). A header line, a line that is not numbers, a
+(`t,gx,gy,gz` alone is a gyro line too). An accelerometer (m/s^2, the session format's
+`ax ay az`) comes as three more fields, `t,gx,gy,gz,mx,my,mz,ax,ay,az`, or on lines of its
+own, `t,,,,,,,ax,ay,az`; a stream without them is read as it always was. A header line, a line that is not numbers, a
 sample with NaN/inf or a value beyond any sensor's range (MAX_ABS_VALUE), a line longer than
 MAX_LINE_BYTES, or a sample whose time does not increase for its sensor is skipped and
 counted (`LineCounts`), never fatal.
@@ -53,8 +55,9 @@ class LineCounts:
     lines: int = 0            # non-empty lines
     gyro: int = 0             # gyro samples kept
     mag: int = 0              # magnetometer samples kept
+    acc: int = 0              # accelerometer samples kept
     header: int = 0           # a first line that is not numbers
-    bad: int = 0              # lines that are not `t,gx,gy,gz,mx,my,mz` (or a half of it)
+    bad: int = 0              # lines that are not `t,gx,gy,gz,mx,my,mz[,ax,ay,az]` (or a part of it)
     out_of_order: int = 0     # samples whose time does not increase for their sensor
     last_bad: str = field(default="", repr=False)
 
@@ -63,12 +66,16 @@ class LineCounts:
         return self.header + self.bad + self.out_of_order
 
     def to_dict(self) -> dict:
-        return {"lines": self.lines, "gyro": self.gyro, "mag": self.mag, "header": self.header, "bad": self.bad,
-                "out_of_order": self.out_of_order}
+        out = {"lines": self.lines, "gyro": self.gyro, "mag": self.mag, "header": self.header, "bad": self.bad,
+               "out_of_order": self.out_of_order}
+        if self.acc:
+            out["acc"] = self.acc
+        return out
 
 
 class LineParser:
-    """Bytes in, (gyro rows, magnetometer rows) out; rows are (t, x, y, z) tuples, gyro in rad/s."""
+    """Bytes in, (gyro rows, magnetometer rows, accelerometer rows) out; rows are (t, x, y, z) tuples, gyro in
+    rad/s, accelerometer in m/s^2 (no rows without `ax ay az` fields)."""
 
     def __init__(self, gyro_unit: str = "rad/s"):
         if gyro_unit not in GYRO_UNITS:
@@ -78,9 +85,9 @@ class LineParser:
         self._tail: list[bytes] = []     # the pieces of a line not yet ended (joined once, when it ends)
         self._tail_bytes = 0
         self._dropping = False           # inside a line longer than MAX_LINE_BYTES: skipped up to its newline
-        self._last_t = [-math.inf, -math.inf]
+        self._last_t = [-math.inf, -math.inf, -math.inf]
 
-    def feed(self, data: bytes) -> tuple[list, list]:
+    def feed(self, data: bytes) -> tuple[list, list, list]:
         """Parse the complete lines in `data` (a partial last line waits for the rest). Linear in the input: a
         line's pieces are kept apart until it ends, and a line longer than MAX_LINE_BYTES is dropped as it grows."""
         lines = data.split(b"\n")
@@ -110,14 +117,14 @@ class LineParser:
         self.counts.bad += 1
         self.counts.last_bad = f"a line longer than {MAX_LINE_BYTES} bytes"
 
-    def finish(self) -> tuple[list, list]:
+    def finish(self) -> tuple[list, list, list]:
         """The last line, when the input ended without a newline."""
         tail = b"".join(self._tail)
         self._tail, self._tail_bytes, self._dropping = [], 0, False
-        return self.parse_lines([tail]) if tail.strip() else ([], [])
+        return self.parse_lines([tail]) if tail.strip() else ([], [], [])
 
-    def parse_lines(self, lines) -> tuple[list, list]:
-        gyro, mag = [], []
+    def parse_lines(self, lines) -> tuple[list, list, list]:
+        gyro, mag, acc = [], [], []
         c = self.counts
         for raw in lines:
             if len(raw) > MAX_LINE_BYTES:
@@ -135,14 +142,15 @@ class LineParser:
                 continue
             if len(values) == 4:
                 values += [None, None, None]
-            if len(values) != 7 or values[0] is None:
+            if len(values) not in (7, 10) or values[0] is None:
                 self._bad(line)
                 continue
             t = values[0]
-            g, m = values[1:4], values[4:7]
-            has_g, has_m = _complete(g), _complete(m)
+            g, m, a = values[1:4], values[4:7], values[7:10]     # a: [] without accelerometer fields
+            has_g, has_m, has_a = _complete(g), _complete(m), bool(a) and _complete(a)
             if (not has_g and any(v is not None for v in g)) or (not has_m and any(v is not None for v in m)) \
-                    or not (has_g or has_m) or not all(math.isfinite(v) for v in values if v is not None) \
+                    or (not has_a and any(v is not None for v in a)) \
+                    or not (has_g or has_m or has_a) or not all(math.isfinite(v) for v in values if v is not None) \
                     or abs(t) > MAX_ABS_TIME_S or any(abs(v) > MAX_ABS_VALUE for v in values[1:] if v is not None):
                 self._bad(line)
                 continue
@@ -161,7 +169,14 @@ class LineParser:
                     c.mag += 1
                 else:
                     c.out_of_order += 1
-        return gyro, mag
+            if has_a:
+                if t > self._last_t[2]:
+                    acc.append((t, a[0], a[1], a[2]))
+                    self._last_t[2] = t
+                    c.acc += 1
+                else:
+                    c.out_of_order += 1
+        return gyro, mag, acc
 
     def _bad(self, line: bytes, header: bool = False) -> None:
         if header:
@@ -262,7 +277,8 @@ END = None   # what the queue carries after the last batch
 
 
 class LineReader:
-    """Reads a source in a daemon thread and puts (gyro rows, magnetometer rows) batches on `batches`;
+    """Reads a source in a daemon thread and puts (gyro rows, magnetometer rows, accelerometer rows) batches on
+    `batches`;
     after the input ends, END (None); an error in the source arrives as the exception itself."""
 
     def __init__(self, chunks: Iterator[bytes], parser: LineParser):
@@ -288,12 +304,12 @@ class LineReader:
                     return
                 if not data:
                     continue
-                gyro, mag = self.parser.feed(data)
-                if gyro or mag:
-                    self.batches.put((gyro, mag))
-            gyro, mag = self.parser.finish()
-            if gyro or mag:
-                self.batches.put((gyro, mag))
+                gyro, mag, acc = self.parser.feed(data)
+                if gyro or mag or acc:
+                    self.batches.put((gyro, mag, acc))
+            gyro, mag, acc = self.parser.finish()
+            if gyro or mag or acc:
+                self.batches.put((gyro, mag, acc))
             self.batches.put(END)
         except BaseException as exc:  # noqa: BLE001 - handed to the main thread
             self.batches.put(exc)

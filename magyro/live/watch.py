@@ -87,7 +87,7 @@ def watch(source: str, *, output=None, status=None, serial: bool = False, baud: 
                 saved = _save(monitor, output)        # first: nothing after it may lose the recording
                 if error is None and (monitor.gyro.n or monitor.mag.n):
                     try:
-                        last = monitor.update()
+                        last = monitor.update(final=True)
                     except Exception as exc:  # noqa: BLE001 - the session is saved; the error is reported
                         error, reason = exc, "stopped by an error"
             finally:
@@ -231,7 +231,8 @@ def enough_summary(enough_at_s, status) -> str:
 
 
 def summary(reason: str, monitor, status, counts, saved: bool, output) -> str:
-    parts = [f"magyro watch: {reason}; {counts.gyro} gyro, {counts.mag} magnetometer samples"]
+    acc = f", {counts.acc} accelerometer" if counts.acc else ""
+    parts = [f"magyro watch: {reason}; {counts.gyro} gyro, {counts.mag} magnetometer{acc} samples"]
     if counts.skipped:
         parts.append(f"skipped {counts.header} header, {counts.bad} bad, {counts.out_of_order} out-of-order lines")
     if status is not None:
@@ -241,6 +242,10 @@ def summary(reason: str, monitor, status, counts, saved: bool, output) -> str:
             parts.append("predicted 1-sigma " + ", ".join(f"{g} {significant(v)} (target {significant(status.targets[g])})"
                                                           for g, v in p.items()))
         parts.append(enough_summary(monitor.enough_at_s, status))
+        if status.accelerometer is not None:
+            from magyro.live.display import accelerometer_text
+
+            parts.append(accelerometer_text(status.accelerometer, advice=True))
     if output is not None:
         parts.append(f"session written to {output}" if saved else "nothing to save (no gyro or no magnetometer sample)")
     return "; ".join(parts)

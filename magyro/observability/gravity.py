@@ -227,7 +227,7 @@ def pose_words(face: str) -> str:
 
 
 def accelerometer_advice(face_s: dict, spread: float, weakest: np.ndarray) -> list[str]:
-    missing = [f for f in FACES if face_s[f] < FACE_ENOUGH_S]
+    missing = missing_poses(face_s)
     advice = []
     if missing:
         advice.append("Hold the device still for a few seconds with " + "; with ".join(pose_words(f) for f in missing)
@@ -254,18 +254,21 @@ def describe_acc_direction(v: np.ndarray) -> str:
     return text
 
 
-def accelerometer_noise(t_s, acc, rests_s, g: float) -> tuple[float, float]:
-    """(white noise per sample, the hand's RMS along gravity), m/s^2."""
+def white_noise_m_s2(acc) -> float:
+    """The white noise per sample from robust third differences (no rests needed), m/s^2."""
+    from magyro.front.differences import white_noise_std
+    return float(np.sqrt(np.mean(white_noise_std(acc) ** 2)))
+
+
+def accelerometer_noise(t_s, acc, rests_s, g: float, white: float | None = None) -> tuple[float, float]:
+    """(white noise per sample, the hand's RMS along gravity), m/s^2. `white` given: taken as it is."""
     still = []
     for a, b in rests_s:
         x = acc[(t_s >= a) & (t_s <= b)]
         if len(x) >= 10:
             still.append(x - x.mean(axis=0))
-    if still:
-        white = float(np.sqrt(np.mean(np.concatenate(still) ** 2)))
-    else:
-        from magyro.front.differences import white_noise_std
-        white = float(np.sqrt(np.mean(white_noise_std(acc) ** 2)))
+    if white is None:
+        white = float(np.sqrt(np.mean(np.concatenate(still) ** 2))) if still else white_noise_m_s2(acc)
     norm = np.linalg.norm(acc, axis=1)
     w = stillness(norm, g)
     ms = float(np.sum(w * (norm - g) ** 2) / max(np.sum(w), 1e-300))
@@ -357,21 +360,20 @@ def combined_rank(lam, V, *references) -> int:
 # --------------------------------------------------------------------------- both
 
 
-def observe_accelerometer(full_session, moving_session, field_m, analysis, rates_rad_s, rests_s,
-                          gyro_sample_std: float, mag_std_unit_field: float) -> AccelerometerObservability | None:
-    """Parts 1 and 2, or None when the session has no (usable) accelerometer.
-
-    Part 1 uses every accelerometer sample of `full_session` (the rests are its best poses); part 2 the span the
-    gate analyses (`moving_session`), beside the field's integral."""
+def accelerometer_parameters(t_acc_s, acc_m_s2, rests_s, t_gyro_s=None, gyro_rad_s=None,
+                             white_m_s2: float | None = None) -> AccelerometerObservability | None:
+    """Part 1 alone (`gyro` None), or None without a usable accelerometer; g and the white noise are read at the
+    gyro's `rests_s` (none: `reference_g`'s and `accelerometer_noise`'s fallbacks; `white_m_s2`: given). Called by
+    `observe_accelerometer`, and by `magyro watch` on the data received so far."""
     from magyro.observability.report import SPHERE_BANDS, SPHERE_SECTORS, sphere_cell
 
-    ta, acc = _finite(full_session.t_acc_s, full_session.acc_m_s2)
+    ta, acc = _finite(t_acc_s, acc_m_s2)
     if ta is None:
         return None
-    g = reference_g(ta, acc, rests_s, full_session.t_gyro_s, full_session.gyro_rad_s)
+    g = reference_g(ta, acc, rests_s, t_gyro_s, gyro_rad_s)
     if not g > 0:
         return None
-    white, hand = accelerometer_noise(ta, acc, rests_s, g)
+    white, hand = accelerometer_noise(ta, acc, rests_s, g, white_m_s2)
     sigma_u = math.hypot(white, hand) / g
     J, N, W, u = accelerometer_information(ta, acc, g, sigma_u)
     lam, V = np.linalg.eigh(J)
@@ -387,14 +389,33 @@ def observe_accelerometer(full_session, moving_session, field_m, analysis, rates
     held = u[stillness(np.linalg.norm(acc, axis=1), g) >= 0.5]
     cells = np.unique(sphere_cell(held))
     spread = float(3.0 * max(c_lam[0], 0.0))
-    gyro = gyro_with_gravity(moving_session, field_m, analysis, rates_rad_s, gyro_sample_std, mag_std_unit_field,
-                             g, sigma_u)
     return AccelerometerObservability(
         g_reference_m_s2=g, still_s=float(np.sum(W)), white_noise_m_s2=white, hand_m_s2=hand,
         rank=3 * rank4, condition=float(lam[-1] / lam[0]) if lam[0] > 0 else math.inf, eigenvalues=lam / lam[-1],
         directions=directions, spread=spread, spread_eigenvalues=3.0 * c_lam, spread_weakest=weakest,
         face_s=faces, cells_visited=int(cells.size), cells=SPHERE_BANDS * SPHERE_SECTORS,
-        advice=accelerometer_advice(faces, spread, weakest), gyro=gyro, gravity_directions=held)
+        advice=accelerometer_advice(faces, spread, weakest), gyro=None, gravity_directions=held)
+
+
+def observe_accelerometer(full_session, moving_session, field_m, analysis, rates_rad_s, rests_s,
+                          gyro_sample_std: float, mag_std_unit_field: float) -> AccelerometerObservability | None:
+    """Parts 1 and 2, or None when the session has no (usable) accelerometer.
+
+    Part 1 uses every accelerometer sample of `full_session` (the rests are its best poses); part 2 the span the
+    gate analyses (`moving_session`), beside the field's integral."""
+    out = accelerometer_parameters(full_session.t_acc_s, full_session.acc_m_s2, rests_s, full_session.t_gyro_s,
+                                   full_session.gyro_rad_s)
+    if out is None:
+        return None
+    g, sigma_u = out.g_reference_m_s2, math.hypot(out.white_noise_m_s2, out.hand_m_s2) / out.g_reference_m_s2
+    out.gyro = gyro_with_gravity(moving_session, field_m, analysis, rates_rad_s, gyro_sample_std, mag_std_unit_field,
+                                 g, sigma_u)
+    return out
+
+
+def missing_poses(face_s: dict) -> list[str]:
+    """The poses (of FACES) gravity sat in for less than FACE_ENOUGH_S, in FACES' order."""
+    return [f for f in FACES if face_s[f] < FACE_ENOUGH_S]
 
 
 # --------------------------------------------------------------------------- helpers
