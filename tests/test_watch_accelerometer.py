@@ -25,7 +25,7 @@ from magyro.live.display import accelerometer_text, plain_line
 from magyro.live.monitor import ExcitationMonitor
 from magyro.live.prediction import Predictor
 from magyro.live.sources import LineParser
-from magyro.live.stream import session_lines, stream_session
+from magyro.live.stream import stream_session
 from magyro.live.watch import watch
 from magyro.observability.gravity import FACES, missing_poses
 from test_observe_accelerometer import DATA
