@@ -100,6 +100,8 @@ def solve(session, options: Options) -> dict:
         cal = calibrate(session, options)
     except MagyroError as exc:
         return {"exit": exc.exit_code, "message": one_line(exc, None), "cpu_s": time.process_time() - t0}
+    except Exception as exc:   # a defect, not a refusal: recorded as such, and the other recordings still run
+        return {"exit": "traceback", "message": f"{type(exc).__name__}: {exc}", "cpu_s": time.process_time() - t0}
     return {"exit": 0, "cal": cal, "cpu_s": time.process_time() - t0}
 
 
@@ -286,15 +288,15 @@ def main(argv=None) -> None:
         names = {n.strip() for n in a.only.split(",")}
         chosen = [r for r in chosen if r["name"] in names]
     rows = []
+    command = "python benchmarks/accelerometer_real.py " + " ".join(argv or [])
     for r in chosen:
         row = run(r)
         print_table([row])
         sys.stdout.flush()
         rows.append(row)
-    if a.out:
-        command = "python benchmarks/accelerometer_real.py " + " ".join(argv or [])
-        write_record(a.out, {"rows": rows, "gravity_m_s2": Options().gravity_m_s2,
-                             "provenance": measured_at(command.strip())})
+        if a.out:   # after every recording: a long run stopped half way keeps what it measured
+            write_record(a.out, {"rows": rows, "gravity_m_s2": Options().gravity_m_s2, "complete": len(rows) == len(chosen),
+                                 "provenance": measured_at(command.strip())})
 
 
 if __name__ == "__main__":
