@@ -3,6 +3,7 @@
     python benchmarks/accelerometer.py sim --problem paper-table1-acc --seeds 20 --out docs/numbers/accelerometer-paper-table1-acc.json
     python benchmarks/accelerometer.py sim --problem phone-module-acc --seeds 20 --out docs/numbers/accelerometer-phone-module-acc.json
     python benchmarks/accelerometer.py real --out docs/numbers/accelerometer-broad-02.json
+    python benchmarks/accelerometer_real.py --out docs/numbers/accelerometer-real.json
     python docs/make_accelerometer_numbers.py [--check] [PAGE]      (default: docs/accelerometer.md)
 
 The observe block is `magyro observe data/broad-02.parquet`'s accelerometer section, made afresh (no record).
@@ -22,6 +23,7 @@ PAGE = DOCS / "accelerometer.md"
 COMMAND = "python docs/make_accelerometer_numbers.py"
 SIM_RECORDS = {"acc-sim-paper": "accelerometer-paper-table1-acc", "acc-sim-phone": "accelerometer-phone-module-acc"}
 REAL_RECORD = "accelerometer-broad-02"
+EVERY_REAL_RECORD = "accelerometer-real"
 
 
 def sim_table(r: dict) -> str:
@@ -68,6 +70,129 @@ def shortfall(records: list[dict]) -> str:
             f"{worst:.1f})")
 
 
+def reason(message: str) -> str:
+    """A refusal's cause, its first clause: what the table says of a refused recording."""
+    first = message.removeprefix("--accelerometer: ").split(": ")[0].split("; ")[0].split(" (")[0]
+    return doc_blocks.escape(first if len(first) <= 120 else first[:117].rsplit(" ", 1)[0] + " ...")
+
+
+def plus_minus(values, stds, digits: int, sign: bool = False) -> str:
+    return ", ".join(f"{v:{'+' if sign else ''}.{digits}f}±{s:.{digits}f}" for v, s in zip(values, stds))
+
+
+def exit_cell(row: dict) -> str:
+    """The exit code with the accelerometer (its cause when refused), the one without when it differs, and what
+    --force gave for a refusal for the motion or the std."""
+    if row["stage"] == "import":
+        return f"import: {row['exit']}, {reason(row['message'])}"
+    if row["exit"] == "traceback":   # a defect the benchmark caught, not a refusal
+        return f"traceback: {doc_blocks.escape(row['message'].strip())}" + (
+            f" (without: {row['exit_without']})" if row["exit_without"] != row["exit"] else "")
+    cell = str(row["exit"]) + (f", {reason(row['message'])}" if row["exit"] else "")
+    if row["exit_without"] != row["exit"]:
+        cell += f" (without: {row['exit_without']})"
+    if "forced_exit" in row:
+        cell += f"; forced: {row['forced_exit']}" + (f", {reason(row['forced_message'])}" if row["forced_exit"] else "")
+    return cell
+
+
+def dead_reckoning_cell(row: dict) -> str:
+    dr = row.get("dead_reckoning_rms_deg")
+    if dr is None:
+        return "-"
+    return " / ".join("-" if dr[k] is None else f"{dr[k]:.2f}" for k in ("raw", "without", "with"))
+
+
+def real_row(row: dict) -> list[str]:
+    """One recording: what is reported on it with the accelerometer (or, forced, would have been), the gyro beside."""
+    what = f"{row['name']}: {row['what']}"
+    saturates = [f for f in row.get("acc_findings", []) if f["kind"] == "saturation"]
+    if saturates:
+        what += f"; the accelerometer saturates ({len(saturates)} axis-signs, `magyro check`)"
+    n = row.get("solved") or row.get("forced")
+    if n is None:
+        raw = "; ".join(f"({100 * (x['raw_over_g'] - 1):+.2f})" for x in row.get("raw_rests", []))
+        return [doc_blocks.escape(what), exit_cell(row), raw or "-"] + ["-"] * 4 + [dead_reckoning_cell(row)]
+    rests = "; ".join(f"{100 * (x['f_over_g'] - 1):+.2f} ({100 * (x['raw_over_g'] - 1):+.2f})" for x in n["rests"])
+    ratio = "-"
+    if "gyro_std_ratio" in n:
+        v = np.array(list(n["gyro_std_ratio"].values()))
+        ratio = f"{v.min():.2f}-{v.max():.2f}, median {np.median(v):.2f}" + (" (forced)" if row.get("without_forced") else "")
+    return [doc_blocks.escape(what), exit_cell(row), rests or "no rest", plus_minus(n["K_a_diag"], n["K_a_diag_std"], 3),
+            plus_minus(n["bias_m_s2"], n["bias_std_m_s2"], 3, sign=True),
+            plus_minus(n["euler_deg"], n["misalignment_std_deg"], 2, sign=True), ratio, dead_reckoning_cell(row)]
+
+
+def every_real_table(r: dict) -> str:
+    """benchmarks/accelerometer_real.py's record: one row per recording, the absent ones listed below."""
+    present = [row for row in r["rows"] if "absent" not in row]
+    absent = [row for row in r["rows"] if "absent" in row]
+    head = (f"Every real recording at hand, solved with the defaults and with `--accelerometer` "
+            f"(`{r['provenance']['command']}`, {r['provenance']['date']}, {r['provenance']['commit']}); a refusal "
+            "with the accelerometer for the motion or the std (exit 3) forced too, its numbers then those `--force` "
+            "reports, and a refusal without it forced for the columns that compare:\n\n")
+    body = table(
+        ["recording", "exit with the accelerometer", "\\|f\\|/g - 1 at the rests, % (raw)", "K_a diagonal",
+         "bias, m/s^2", "C_b_a roll pitch yaw, deg", "gyro std with/without", "dead-reckoning RMS raw / without / with, deg"],
+        [real_row(row) for row in present], left=(0, 1))
+    tail = "" if not absent else ("\n\nNot at hand when measured: "
+                                  + "; ".join(f"{row['name']} ({row['absent']})" for row in absent) + ".")
+    return head + body + tail
+
+
+def every_real_summary(r: dict) -> str:
+    """What the table says, in lines: the dead reckoning with the accelerometer against without on each recording
+    with an optical truth, the refusals with it, and the warnings it adds."""
+    lines = []
+    for row in r["rows"]:
+        dr = row.get("dead_reckoning_rms_deg")
+        if dr is None or dr["without"] is None or dr["with"] is None:
+            continue
+        verdict = "helps" if dr["with"] < 0.9 * dr["without"] else "harms" if dr["with"] > 1.1 * dr["without"] else "changes little"
+        forced = " (both forced)" if row.get("without_forced") and row.get("forced") else (
+            " (with forced)" if row.get("forced") else " (without forced)" if row.get("without_forced") else "")
+        lines.append(f"{row['name']}: dead reckoning {dr['without']:.2f} -> {dr['with']:.2f} deg RMS with the "
+                     f"accelerometer ({dr['with'] / dr['without']:.2f}x; raw {dr['raw']:.2f}): it {verdict}{forced}.")
+    for row in r["rows"]:
+        n = row.get("solved") or row.get("forced")
+        if n is None or "gyro_std_ratio" not in n:
+            continue
+        worst = max(n["gyro_std_ratio"], key=n["gyro_std_ratio"].get)
+        if n["gyro_std_ratio"][worst] > 1.1:
+            lines.append(f"{row['name']}: the gyro's std with the accelerometer up to {n['gyro_std_ratio'][worst]:.2f}x "
+                         f"the one without ({worst}){' (with forced)' if row.get('forced') else ''}.")
+    for row in r["rows"]:
+        n = row.get("forced")
+        if n is None:
+            continue
+        z = [(abs(v - 1.0) / s, k, v, s) for k, (v, s) in enumerate(zip(n["K_a_diag"], n["K_a_diag_std"]))]
+        far, k, v, sd = max(z)
+        lines.append(f"{row['name']}, forced: K_a[{k},{k}] {v:.3f}±{sd:.3f}, {far:.1f} of its std from 1.")
+    for row in r["rows"]:
+        if "absent" in row or not row.get("exit"):
+            continue
+        text = f"{row['name']}: exit {row['exit']} with the accelerometer, exit {row.get('exit_without', '-')} without"
+        if row["exit"] == "traceback":
+            lines.append(text + f": {doc_blocks.escape(row['message'].strip())}.")
+            continue
+        text += f": {reason(row['message'])}"
+        if "forced_exit" in row:
+            text += "; forced: exit " + str(row["forced_exit"])
+            if row["forced_exit"]:
+                same = reason(row["forced_message"]) == reason(row["message"])
+                text += " (the same)" if same else f" ({reason(row['forced_message'])})"
+        lines.append(text + ("" if text.endswith("...") else "."))
+    for row in r["rows"]:
+        n = row.get("solved") or row.get("forced")
+        if n is None:
+            continue
+        added = [w for w in n["warnings"] if w not in row.get("warnings_without", [])]
+        if added and row.get("solved"):
+            lines.append(f"{row['name']}: warned with the accelerometer only: "
+                         + "; ".join(doc_blocks.escape(w.split(". ")[0]) for w in added) + ".")
+    return doc_blocks.notes(lines)
+
+
 def observe_block() -> str:
     """`magyro observe data/broad-02.parquet`'s accelerometer section (computed: a second, no solve)."""
     import magyro
@@ -82,6 +207,9 @@ def blocks() -> dict[str, str]:
     out["acc-observe-broad-02"] = observe_block()
     out["acc-broad-02"] = real_block(read_record(REAL_RECORD))
     out["acc-shortfall"] = shortfall([read_record(record) for record in SIM_RECORDS.values()])
+    every = read_record(EVERY_REAL_RECORD)
+    out["acc-real"] = every_real_table(every)
+    out["acc-real-summary"] = every_real_summary(every)
     return out
 
 

@@ -172,6 +172,11 @@ def test_a_changed_accelerometer_record_changes_its_page():
     real = blocks_module.read_record(accelerometer_page.REAL_RECORD)
     real["halves_rms_z"] += 1.0
     assert accelerometer_page.real_block(real) != blocks_module.block_in_page(text, "acc-broad-02")
+    every = blocks_module.read_record(accelerometer_page.EVERY_REAL_RECORD)
+    trial = next(row for row in every["rows"] if (row.get("dead_reckoning_rms_deg") or {}).get("with") is not None)
+    trial["dead_reckoning_rms_deg"]["with"] *= 3.0        # the accelerometer would now harm the gyro there
+    assert accelerometer_page.every_real_table(every) != blocks_module.block_in_page(text, "acc-real")
+    assert accelerometer_page.every_real_summary(every) != blocks_module.block_in_page(text, "acc-real-summary")
 
 
 def test_a_changed_ekf_record_changes_its_tables():
