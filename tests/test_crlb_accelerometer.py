@@ -99,6 +99,7 @@ def test_the_gyro_bound_without_the_accelerometer_is_crlb_py(problem, session):
     assert task["error"] is None and task["values"] == expected and "white" not in task
 
 
+@pytest.mark.heavy   # two solves with the accelerometer and its bound: 32 s, in .ci/run's second pass
 def test_montecarlo_gains_the_accelerometers_rows(problem):
     result = mc.run_montecarlo(problem, 2, jobs=1)
     nls = result["nls"]

@@ -125,14 +125,14 @@ def fed_with_accelerometer(monitor: ExcitationMonitor, session, until_s: float):
 
 
 def test_the_accelerometer_adds_its_part_and_changes_nothing_else(broad02):
-    """BROAD 02's first 70 s fed with and without its accelerometer rows: every status is the same but for the
+    """BROAD 02's first 45 s (its first rest, then turning) fed with and without its accelerometer rows: every status is the same but for the
     accelerometer's own part (its JSON key, its text after the gyro's), number for number."""
-    s = broad02.within(broad02.t_gyro_s[0], broad02.t_gyro_s[0] + 70.0)
+    s = broad02.within(broad02.t_gyro_s[0], broad02.t_gyro_s[0] + 45.0)
     t0 = s.t_gyro_s[0]
     s = dataclasses.replace(s, t_gyro_s=s.t_gyro_s - t0, t_mag_s=s.t_mag_s - t0, t_acc_s=s.t_acc_s - t0)
     with mock.patch("magyro.live.prediction.COST_FACTOR", 0.0):
-        plain = feed(ExcitationMonitor(predictor=Predictor("inline", refresh_s=8.0)), s, chunk_s=0.5, until_s=70.0)
-        both = fed_with_accelerometer(ExcitationMonitor(predictor=Predictor("inline", refresh_s=8.0)), s, 70.0)
+        plain = feed(ExcitationMonitor(predictor=Predictor("inline", refresh_s=8.0)), s, chunk_s=0.5, until_s=45.0)
+        both = fed_with_accelerometer(ExcitationMonitor(predictor=Predictor("inline", refresh_s=8.0)), s, 45.0)
     assert len(plain) == len(both) and any(x.accelerometer is not None for x in both)
     for x, y in zip(plain, both):
         assert x.accelerometer is None
