@@ -14,7 +14,7 @@ An interval runs from attitude node k to node k+1 over `stride` segments, each o
                   (nls/accelerometer.py)
 
 Each sub-step rotates by (w_a + w_b)/2 dt + dt^2/12 (w_a x w_b), w = K y_g + eps. `interval_kernels` gives the
-residuals, their sum of squares with its gradient, and the Gauss-Newton blocks; `kernel_set` the compiled
+residuals, their sum of squares with its gradient, and the Jacobian; `kernel_set` the compiled
 ones. This module alone (with kernels.py) determines the compiled code: its source is in the kernels'
 cache key (kernels.cache_digest), so a change anywhere else compiles nothing.
 """
@@ -215,13 +215,16 @@ def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool =
     return ca.vertcat(*res)
 
 
-KERNEL_NAMES = ("interval_residuals", "interval_gradient", "interval_gauss_newton")
+KERNEL_NAMES = ("interval_residuals", "interval_gradient", "interval_jacobian")
 
 
 def interval_kernels(stride: int, L: int, n_theta: int, walk: bool = False):
     """The three per-interval SX kernels of a shape (`kernel_key`'s arguments): residuals; sum of squares and its
-    gradient; the Gauss-Newton Hessian's parts (J_theta^T, the interval's triu(J_theta^T J_theta), and its
-    contributions to its two nodes' columns)."""
+    gradient; the Jacobian J = d r / d (theta, s_k, s_k1), given as J^T densified (n_theta + 2 B rows, one column
+    per residual) so that its column-major nonzeros are J's rows, each interval's J a C-ordered (residuals,
+    n_theta + 2 B) block. The Gauss-Newton products J^T J are formed from it on numpy, batched over a piece of
+    intervals (on_numpy.GaussNewtonProducts): a Hessian at 360k samples took 0.86 s CPU with the products inside
+    the kernel, 0.42 s so (the Jacobian kernel ~11 us per interval, the products ~3 us)."""
     th = ca.SX.sym("theta", n_theta)
     pk = ca.SX.sym("s_k", node_size(walk))
     pk1 = ca.SX.sym("s_k1", node_size(walk))
@@ -229,34 +232,14 @@ def interval_kernels(stride: int, L: int, n_theta: int, walk: bool = False):
     g = ca.SX.sym("g", global_size(acc))
     d = ca.SX.sym("d", sum(k for _, k in data_layout(stride, L, walk, acc)))
     r = interval_residuals(th, pk, pk1, g, d, stride, L, walk, acc)
-    JthT = ca.jacobian(r, th).T
-    Jk = ca.jacobian(r, pk)
-    Jk1 = ca.jacobian(r, pk1)
     ssq = ca.sumsqr(r)
     args = [th, pk, pk1, g, d]
     return [
         ca.Function(KERNEL_NAMES[0], args, [r]),
         ca.Function(KERNEL_NAMES[1], args,
                     [ssq, 0.5 * ca.gradient(ssq, th), 0.5 * ca.gradient(ssq, pk), 0.5 * ca.gradient(ssq, pk1)]),
-        ca.Function(KERNEL_NAMES[2], args,
-                    [JthT, upper_triangle(ca.mtimes(JthT, JthT.T)),
-                     node_columns(ca.mtimes(JthT, Jk), ca.SX.zeros(Jk.shape[1], Jk.shape[1]), ca.mtimes(Jk.T, Jk)),
-                     node_columns(ca.mtimes(JthT, Jk1), ca.mtimes(Jk.T, Jk1), ca.mtimes(Jk1.T, Jk1))]),
+        ca.Function(KERNEL_NAMES[2], args, [ca.densify(ca.jacobian(r, ca.vertcat(th, pk, pk1)).T)]),
     ]
-
-
-def upper_triangle(M):
-    """The upper triangle of a square matrix in compressed-column order (column j: rows 0..j)."""
-    return ca.vertcat(*[M[: j + 1, j] for j in range(M.shape[1])])
-
-
-def node_columns(theta_rows, previous_rows, own_rows):
-    """One interval's part of a node's columns of triu(J^T J), in compressed-column order (problem.hessian_sparsity):
-    per column c of the node the theta rows, the previous node's rows, then the node's own rows 0..c. For the
-    interval's first node (k) the previous node's rows are zero (interval k-1 holds them); for its second
-    (k+1) they are the coupling J_k^T J_k+1."""
-    return ca.vertcat(*[ca.vertcat(theta_rows[:, c], previous_rows[:, c], own_rows[: c + 1, c])
-                        for c in range(own_rows.shape[1])])
 
 
 def accelerometer_jacobian_kernel(stride: int, L: int, n_theta: int, walk: bool = False) -> ca.Function:

