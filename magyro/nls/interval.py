@@ -223,8 +223,9 @@ def interval_kernels(stride: int, L: int, n_theta: int, walk: bool = False):
     gradient; the Jacobian J = d r / d (theta, s_k, s_k1), given as J^T densified (n_theta + 2 B rows, one column
     per residual) so that its column-major nonzeros are J's rows, each interval's J a C-ordered (residuals,
     n_theta + 2 B) block. The Gauss-Newton products J^T J are formed from it on numpy, batched over a piece of
-    intervals (on_numpy.GaussNewtonProducts): a Hessian at 360k samples took 0.86 s CPU with the products inside
-    the kernel, 0.42 s so (the Jacobian kernel ~11 us per interval, the products ~3 us)."""
+    intervals (on_numpy.GaussNewtonProducts, GAUSS_NEWTON_C: in the order the kernel summed them, so the same
+    Hessian bit for bit): a Hessian at 360k samples took 0.86 s CPU with the products inside the kernel, 0.50 s
+    so."""
     th = ca.SX.sym("theta", n_theta)
     pk = ca.SX.sym("s_k", node_size(walk))
     pk1 = ca.SX.sym("s_k1", node_size(walk))
@@ -240,6 +241,63 @@ def interval_kernels(stride: int, L: int, n_theta: int, walk: bool = False):
                     [ssq, 0.5 * ca.gradient(ssq, th), 0.5 * ca.gradient(ssq, pk), 0.5 * ca.gradient(ssq, pk1)]),
         ca.Function(KERNEL_NAMES[2], args, [ca.densify(ca.jacobian(r, ca.vertcat(th, pk, pk1)).T)]),
     ]
+
+
+# The Gauss-Newton products of the intervals' Jacobians (on_numpy.GaussNewtonProducts), in the order the SX kernel
+# with the products inside summed them (casadi_mtimes over J^T J: each entry a sum over the residuals in their order
+# from zero, each interval's triu(J_theta^T J_theta) then added to the running total interval after interval), so
+# the Hessian is the same bit for bit; an exact zero of J is skipped (as a structural zero was: adding +-0 changes no
+# sum). Plain C at the kernels' -O2: no BLAS, whose order and FMA depend on the CPU it runs on.
+GAUSS_NEWTON_PRODUCTS = "gauss_newton_parts"
+GAUSS_NEWTON_C = """
+void gauss_newton_parts(long m, long R, long N, long G, const double* restrict J, double* restrict H_tt,
+                        double* restrict P, double* restrict tmp) {
+  /* J (m, R, N) row-major, each interval's Jacobian [J_theta, J_k, J_k1]; H_tt (G, G): the running total of
+     triu(J_theta^T J_theta) (upper triangle, row-major); P (m, N, W = N - G): each interval's J^T [J_k, J_k1];
+     tmp (G, G): work */
+  long W = N - G, i, r, a, b;
+  for (i = 0; i < m; ++i) {
+    const double* restrict Ji = J + i * R * N;
+    double* restrict Pi = P + i * N * W;
+    for (a = 0; a < G * G; ++a) tmp[a] = 0.0;
+    for (a = 0; a < N * W; ++a) Pi[a] = 0.0;
+    for (r = 0; r < R; ++r) {
+      const double* restrict row = Ji + r * N;
+      for (a = 0; a < N; ++a) {
+        double ja = row[a];
+        if (ja == 0.0) continue;
+        if (a < G)
+          for (b = a; b < G; ++b) tmp[a * G + b] += ja * row[b];
+        for (b = 0; b < W; ++b) Pi[a * W + b] += ja * row[G + b];
+      }
+    }
+    for (a = 0; a < G; ++a)
+      for (b = a; b < G; ++b) H_tt[a * G + b] += tmp[a * G + b];
+  }
+}
+"""
+
+
+def gauss_newton_products(compiled: bool = True):
+    """`GAUSS_NEWTON_C` compiled (installed with magyro, cached, or compiled now) and loaded by ctypes, or None
+    (no compiler, MAGYRO_JIT=0, or not `compiled`): then numpy sums in the same order, slower."""
+    import ctypes
+
+    from magyro.nls.kernels import build_libraries, existing_library, jit_enabled, library_path
+
+    if not compiled or not jit_enabled():
+        return None
+    lib = existing_library(GAUSS_NEWTON_PRODUCTS, GAUSS_NEWTON_PRODUCTS)
+    if lib is None:
+        lib = library_path(GAUSS_NEWTON_PRODUCTS, GAUSS_NEWTON_PRODUCTS)
+        build_libraries([(GAUSS_NEWTON_C.encode(), lib)])
+        if not lib.exists():
+            return None
+    fn = ctypes.CDLL(str(lib)).gauss_newton_parts
+    pointer = ctypes.POINTER(ctypes.c_double)
+    fn.argtypes = [ctypes.c_long] * 4 + [pointer] * 4
+    fn.restype = None
+    return fn
 
 
 def accelerometer_jacobian_kernel(stride: int, L: int, n_theta: int, walk: bool = False) -> ca.Function:

@@ -174,7 +174,7 @@ class JointProblem:
     @cached_property
     def _products(self) -> GaussNewtonProducts:
         """The Gauss-Newton parts from the intervals' Jacobians, batched on numpy (`on_numpy.GaussNewtonProducts`)."""
-        return GaussNewtonProducts(self.n_theta, self.B)
+        return GaussNewtonProducts(self.n_theta, self.B, self.compiled)
 
     @cached_property
     def _node_1(self) -> np.ndarray:
