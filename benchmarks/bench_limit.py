@@ -4,9 +4,9 @@
     python benchmarks/bench_limit.py --sizes 3600000 --timeout 900        # ten hours at 100 Hz
 
 The limit (issue 27) is what IPOPT's Gauss-Newton iterations cannot do without: the installed interval kernels
-(residuals, gradient, Jacobian with the Gauss-Newton products batched on numpy) evaluated over every interval of the session's problem, once per
-IPOPT iteration the solve took, plus one banded Cholesky of the attitude block with the Schur complement for the
-calibration parameters. Every figure is then a ratio to that limit, measured in the same run.
+(residuals, gradient, and the Jacobian with its Gauss-Newton products J^T J formed per piece of intervals) evaluated
+over every interval of the session's problem, once per IPOPT iteration the solve took, plus one banded Cholesky of
+the attitude block with the Schur complement for the calibration parameters. Every figure is then a ratio to that limit, measured in the same run.
 
 Per size (paper-table1 at 100 Hz, noise seed 0, made by bench_solve.problem_for_samples in a child process):
 
