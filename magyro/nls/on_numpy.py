@@ -90,7 +90,7 @@ class GaussNewtonProducts:
     the G theta rows, the previous node's B rows, the node's own rows 0..c; the first node's previous rows are zero,
     interval k-1 holds them). Summed in the order of the SX kernel that had the products inside (interval.
     GAUSS_NEWTON_C, compiled; numpy in the same order without a compiler), so the Hessian is that kernel's bit for
-    bit; at 360k samples a Hessian takes 0.50 s CPU so against 0.86 s with the products inside the kernel (0.42 s
+    bit; at 360k samples a Hessian takes 0.44 s CPU so against 0.86 s with the products inside the kernel (0.42 s
     with BLAS's products, whose summation order changed estimates by up to 9e-7 of their std and Table I's text)."""
 
     def __init__(self, G: int, B: int, compiled: bool = True):
