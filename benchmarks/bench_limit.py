@@ -4,9 +4,9 @@
     python benchmarks/bench_limit.py --sizes 3600000 --timeout 900        # ten hours at 100 Hz
 
 The limit (issue 27) is what IPOPT's Gauss-Newton iterations cannot do without: the installed interval kernels
-(residuals, gradient, Gauss-Newton blocks) evaluated over every interval of the session's problem, once per
-IPOPT iteration the solve took, plus one banded Cholesky of the attitude block with the Schur complement for the
-calibration parameters. Every figure is then a ratio to that limit, measured in the same run.
+(residuals, gradient, and the Jacobian with its Gauss-Newton products J^T J formed per piece of intervals) evaluated
+over every interval of the session's problem, once per IPOPT iteration the solve took, plus one banded Cholesky of
+the attitude block with the Schur complement for the calibration parameters. Every figure is then a ratio to that limit, measured in the same run.
 
 Per size (paper-table1 at 100 Hz, noise seed 0, made by bench_solve.problem_for_samples in a child process):
 
@@ -150,6 +150,7 @@ def measure_limit_here(session_path: str, repeat: int = 3) -> dict:
     from magyro.front.prepare import prepare
     from magyro.io import load_session
     from magyro.nls.method import NLS
+    from magyro.nls.on_numpy import MapOnNumpy
     from magyro.nls.reduction import tridiagonal_blocks
     from magyro.nls.solve import build_problem, problem_parameters
     from magyro.options import Options
@@ -164,17 +165,20 @@ def measure_limit_here(session_path: str, repeat: int = 3) -> dict:
     states = np.vstack([np.zeros(B), x[G:].reshape(-1, B)])
     args = [ca.DM(x[:G]), ca.DM(states[:-1].T), ca.DM(states[1:].T), ca.DM(problem.globals_of(p)),
             ca.DM(problem.data_of(p).T)]
-    k = problem.gn_kernel
-    inputs = [ca.MX.sym(k.name_in(i), k.sparsity_in(i)) for i in range(k.n_in())]
-    parts = ca.Function("parts", inputs, [ca.densify(v) for v in k(*inputs)[1:]])   # as problem._hessian_graph
-    kernels = {"residuals": problem.residual_kernel.map(n), "gradient": problem.gradient_kernel.map(n),
-               "gauss_newton": parts.map(n, [True, False, False, True, False], [True, False, False], {})}
+    # the Gauss-Newton blocks: the Jacobian kernel over every interval in pieces (on numpy by pointer: a map's
+    # output of every interval's dense J is 280 MB at 360k samples) and its products batched per piece
+    products, H_tt = problem._products, np.zeros((G, G))
+    shape = problem.jacobian_kernel.size_out(0)[::-1]
+    jacobian = MapOnNumpy(problem, problem.jacobian_kernel, pieces=True)
+    residuals, gradient = problem.residual_kernel.map(n), problem.gradient_kernel.map(n)
+    kernels = {"residuals": lambda: residuals(*args), "gradient": lambda: gradient(*args),
+               "gauss_newton": lambda: jacobian(x, p, lambda a, b, o: products(o[0].reshape(b - a, *shape), H_tt))}
     seconds = {}
     for name, fn in kernels.items():
         best = np.inf
         for _ in range(repeat):
             c0 = time.process_time()
-            fn(*args)
+            fn()
             best = min(best, time.process_time() - c0)
         seconds[name] = best
 

@@ -90,3 +90,28 @@ def test_an_installed_magyro_solves_on_an_empty_cache_without_compiling(tmp_path
                           cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert not cache.exists() or not any(cache.iterdir()), sorted(p.name for p in cache.iterdir())
+
+
+@pytest.mark.parametrize("G, B, R", [(24, 3, 39), (41, 3, 45), (24, 6, 42)])
+def test_the_gauss_newton_products_sum_as_the_kernel_did(G, B, R):
+    """The products J^T J of the intervals' Jacobians: the compiled C loop and numpy give the same numbers bit for
+    bit (each entry summed over the residuals in their order, interval after interval, as the SX kernel with the
+    products inside did), exact zeros of J (structural zeros of the kernel's) skipped or not alike."""
+    from magyro.nls.kernels import jit_enabled
+    from magyro.nls.on_numpy import GaussNewtonProducts
+
+    compiled = GaussNewtonProducts(G, B)
+    if not jit_enabled() or compiled.c_parts is None:
+        pytest.skip("no C compiler: only numpy's products")
+    rng = np.random.default_rng(0)
+    J = rng.normal(size=(7, R, G + 2 * B)) * rng.lognormal(0, 3, size=(1, R, G + 2 * B))
+    J[:, : R - 3, G + B :] = 0.0   # J_k1 only in the gyro rows, as in the kernel
+    J[:, R - 3 :, :6] = 0.0
+    H_c, H_np = np.ones((G, G)), np.ones((G, G))
+    parts_c = compiled(J, H_c)
+    parts_np = GaussNewtonProducts(G, B, compiled=False)(J, H_np)
+    upper = np.triu_indices(G)
+    assert np.array_equal(H_c[upper], H_np[upper])
+    assert all(np.array_equal(a, b) for a, b in zip(parts_c, parts_np))
+    full = np.ones((G, G)) + np.einsum("mri,mrj->ij", J[:, :, :G], J[:, :, :G])
+    assert np.allclose(H_c[upper], full[upper], rtol=1e-12, atol=1e-12 * np.abs(full).max())

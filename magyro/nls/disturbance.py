@@ -179,9 +179,9 @@ def disturbance_sensitivities(problem: JointProblem, x, p, reduced: Reduced, C_m
 
 class ThetaRows:
     """d r / d theta of the magnetometer residuals of a slice of intervals, (m, 3 stride, n_theta), from the
-    Gauss-Newton kernel evaluated on that slice alone: its J_theta^T densified and mapped over the slice (theta and
-    g shared), evaluated through buffers on numpy. Mapping the kernel itself (sparse outputs) and its DM arguments
-    cost 3-4x more (0.12 against 0.034 s for 833 intervals)."""
+    Jacobian kernel evaluated on that slice alone: mapped over the slice (theta and g shared), evaluated through
+    buffers on numpy, J's theta columns. Mapping a kernel with sparse outputs and DM arguments cost 3-4x more (0.12
+    against 0.034 s for 833 intervals)."""
 
     def __init__(self, problem: JointProblem, x, p):
         self.problem = problem
@@ -191,9 +191,7 @@ class ThetaRows:
         self.g = ca.DM(self.g_values)
         self.states = np.vstack([np.zeros(problem.B), x[problem.n_theta :].reshape(-1, problem.B)])   # nodes 0..n_int
         self.data = problem.data_of(p)
-        k = problem.gn_kernel
-        inputs = [ca.MX.sym(k.name_in(i), k.sparsity_in(i)) for i in range(k.n_in())]
-        self.rows = ca.Function("interval_theta_rows", inputs, [ca.densify(k(*inputs)[0])])
+        self.rows = problem.jacobian_kernel   # J^T dense: its column-major values are J's rows
         self.maps = {}
 
     def __call__(self, n: slice) -> np.ndarray:
@@ -201,14 +199,16 @@ class ThetaRows:
         evaluation of the map (a map's construction grows faster than its length: 27 ms for 833 intervals, 6 ms for
         256; one map of ROWS_MAP serves every piece)."""
         problem, m = self.problem, n.stop - n.start
-        rows = np.empty((m, problem.n_res_per_interval, problem.n_theta))   # J_theta^T column-major, per interval
+        width = self.rows.size_out(0)[0]   # n_theta + 2 B: J's columns
+        rows = np.empty((m, problem.n_res_per_interval, problem.n_theta))
         for a in range(n.start, n.stop, ROWS_MAP):
             b = min(a + ROWS_MAP, n.stop)
             if b - a not in self.maps:
                 self.maps[b - a] = self.rows.map(b - a, [True, False, False, True, False], [False], {})
             rows[a - n.start : b - n.start] = evaluate(
                 self.maps[b - a], self.x_theta, self.states[a:b].ravel(), self.states[a + 1 : b + 1].ravel(),
-                self.g_values, self.data[a:b].ravel())[0].reshape(b - a, problem.n_res_per_interval, problem.n_theta)
+                self.g_values, self.data[a:b].ravel())[0].reshape(b - a, problem.n_res_per_interval, width)[
+                    :, :, : problem.n_theta]
         return rows[:, : 3 * problem.grid.stride]
 
 

@@ -13,8 +13,8 @@ from pathlib import Path
 
 from magyro.nls.grid import STRIDES
 from magyro.nls.kernels import build_libraries, find_compiler, generate_c, library_name
-from magyro.nls.interval import (N_ACC_THETA, N_GLOBAL, accelerometer_jacobian_kernel, has_accelerometer,
-                                 interval_kernels, kernel_key)
+from magyro.nls.interval import (GAUSS_NEWTON_C, GAUSS_NEWTON_PRODUCTS, N_ACC_THETA, N_GLOBAL,
+                                 accelerometer_jacobian_kernel, has_accelerometer, interval_kernels, kernel_key)
 
 
 def installed_shapes() -> list[tuple[int, int, int, bool]]:
@@ -28,7 +28,7 @@ def install_kernels(folder: Path) -> list[Path]:
     if find_compiler() is None:
         return []
     folder = Path(folder)
-    jobs = []
+    jobs = [(GAUSS_NEWTON_C.encode(), folder / library_name(GAUSS_NEWTON_PRODUCTS, GAUSS_NEWTON_PRODUCTS))]
     for shape in installed_shapes():
         key = kernel_key(*shape)
         fns = interval_kernels(*shape) + ([accelerometer_jacobian_kernel(*shape)] if has_accelerometer(shape[2]) else [])

@@ -14,7 +14,7 @@ An interval runs from attitude node k to node k+1 over `stride` segments, each o
                   (nls/accelerometer.py)
 
 Each sub-step rotates by (w_a + w_b)/2 dt + dt^2/12 (w_a x w_b), w = K y_g + eps. `interval_kernels` gives the
-residuals, their sum of squares with its gradient, and the Gauss-Newton blocks; `kernel_set` the compiled
+residuals, their sum of squares with its gradient, and the Jacobian; `kernel_set` the compiled
 ones. This module alone (with kernels.py) determines the compiled code: its source is in the kernels'
 cache key (kernels.cache_digest), so a change anywhere else compiles nothing.
 """
@@ -215,13 +215,17 @@ def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool =
     return ca.vertcat(*res)
 
 
-KERNEL_NAMES = ("interval_residuals", "interval_gradient", "interval_gauss_newton")
+KERNEL_NAMES = ("interval_residuals", "interval_gradient", "interval_jacobian")
 
 
 def interval_kernels(stride: int, L: int, n_theta: int, walk: bool = False):
     """The three per-interval SX kernels of a shape (`kernel_key`'s arguments): residuals; sum of squares and its
-    gradient; the Gauss-Newton Hessian's parts (J_theta^T, the interval's triu(J_theta^T J_theta), and its
-    contributions to its two nodes' columns)."""
+    gradient; the Jacobian J = d r / d (theta, s_k, s_k1), given as J^T densified (n_theta + 2 B rows, one column
+    per residual) so that its column-major nonzeros are J's rows, each interval's J a C-ordered (residuals,
+    n_theta + 2 B) block. The Gauss-Newton products J^T J are formed from it on numpy, batched over a piece of
+    intervals (on_numpy.GaussNewtonProducts, GAUSS_NEWTON_C: in the order the kernel summed them, so the same
+    Hessian bit for bit): a Hessian at 360k samples took 0.86 s CPU with the products inside the kernel, 0.44 s
+    so."""
     th = ca.SX.sym("theta", n_theta)
     pk = ca.SX.sym("s_k", node_size(walk))
     pk1 = ca.SX.sym("s_k1", node_size(walk))
@@ -229,34 +233,74 @@ def interval_kernels(stride: int, L: int, n_theta: int, walk: bool = False):
     g = ca.SX.sym("g", global_size(acc))
     d = ca.SX.sym("d", sum(k for _, k in data_layout(stride, L, walk, acc)))
     r = interval_residuals(th, pk, pk1, g, d, stride, L, walk, acc)
-    JthT = ca.jacobian(r, th).T
-    Jk = ca.jacobian(r, pk)
-    Jk1 = ca.jacobian(r, pk1)
     ssq = ca.sumsqr(r)
     args = [th, pk, pk1, g, d]
     return [
         ca.Function(KERNEL_NAMES[0], args, [r]),
         ca.Function(KERNEL_NAMES[1], args,
                     [ssq, 0.5 * ca.gradient(ssq, th), 0.5 * ca.gradient(ssq, pk), 0.5 * ca.gradient(ssq, pk1)]),
-        ca.Function(KERNEL_NAMES[2], args,
-                    [JthT, upper_triangle(ca.mtimes(JthT, JthT.T)),
-                     node_columns(ca.mtimes(JthT, Jk), ca.SX.zeros(Jk.shape[1], Jk.shape[1]), ca.mtimes(Jk.T, Jk)),
-                     node_columns(ca.mtimes(JthT, Jk1), ca.mtimes(Jk.T, Jk1), ca.mtimes(Jk1.T, Jk1))]),
+        ca.Function(KERNEL_NAMES[2], args, [ca.densify(ca.jacobian(r, ca.vertcat(th, pk, pk1)).T)]),
     ]
 
 
-def upper_triangle(M):
-    """The upper triangle of a square matrix in compressed-column order (column j: rows 0..j)."""
-    return ca.vertcat(*[M[: j + 1, j] for j in range(M.shape[1])])
+# The Gauss-Newton products of the intervals' Jacobians (on_numpy.GaussNewtonProducts), in the order the SX kernel
+# with the products inside summed them (casadi_mtimes over J^T J: each entry a sum over the residuals in their order
+# from zero, each interval's triu(J_theta^T J_theta) then added to the running total interval after interval), so
+# the Hessian is the same bit for bit; an exact zero of J is skipped (as a structural zero was: adding +-0 changes no
+# sum). Plain C built with the kernels' flags (-O2, no -march), this function at O3 (its loops vectorised across
+# the entries, each entry's sum in the same order: 0.15 -> 0.11 s of a 360k Hessian): no BLAS, whose order and FMA
+# depend on the CPU it runs on.
+GAUSS_NEWTON_PRODUCTS = "gauss_newton_parts"
+GAUSS_NEWTON_C = """
+#pragma GCC optimize ("O3")
+void gauss_newton_parts(long m, long R, long N, long G, const double* restrict J, double* restrict H_tt,
+                        double* restrict P, double* restrict tmp) {
+  /* J (m, R, N) row-major, each interval's Jacobian [J_theta, J_k, J_k1]; H_tt (G, G): the running total of
+     triu(J_theta^T J_theta) (upper triangle, row-major); P (m, N, W = N - G): each interval's J^T [J_k, J_k1];
+     tmp (G, G): work */
+  long W = N - G, i, r, a, b;
+  for (i = 0; i < m; ++i) {
+    const double* restrict Ji = J + i * R * N;
+    double* restrict Pi = P + i * N * W;
+    for (a = 0; a < G * G; ++a) tmp[a] = 0.0;
+    for (a = 0; a < N * W; ++a) Pi[a] = 0.0;
+    for (r = 0; r < R; ++r) {
+      const double* restrict row = Ji + r * N;
+      for (a = 0; a < N; ++a) {
+        double ja = row[a];
+        if (ja == 0.0) continue;
+        if (a < G)
+          for (b = a; b < G; ++b) tmp[a * G + b] += ja * row[b];
+        for (b = 0; b < W; ++b) Pi[a * W + b] += ja * row[G + b];
+      }
+    }
+    for (a = 0; a < G; ++a)
+      for (b = a; b < G; ++b) H_tt[a * G + b] += tmp[a * G + b];
+  }
+}
+"""
 
 
-def node_columns(theta_rows, previous_rows, own_rows):
-    """One interval's part of a node's columns of triu(J^T J), in compressed-column order (problem.hessian_sparsity):
-    per column c of the node the theta rows, the previous node's rows, then the node's own rows 0..c. For the
-    interval's first node (k) the previous node's rows are zero (interval k-1 holds them); for its second
-    (k+1) they are the coupling J_k^T J_k+1."""
-    return ca.vertcat(*[ca.vertcat(theta_rows[:, c], previous_rows[:, c], own_rows[: c + 1, c])
-                        for c in range(own_rows.shape[1])])
+def gauss_newton_products(compiled: bool = True):
+    """`GAUSS_NEWTON_C` compiled (installed with magyro, cached, or compiled now) and loaded by ctypes, or None
+    (no compiler, MAGYRO_JIT=0, or not `compiled`): then numpy sums in the same order, slower."""
+    import ctypes
+
+    from magyro.nls.kernels import build_libraries, existing_library, jit_enabled, library_path
+
+    if not compiled or not jit_enabled():
+        return None
+    lib = existing_library(GAUSS_NEWTON_PRODUCTS, GAUSS_NEWTON_PRODUCTS)
+    if lib is None:
+        lib = library_path(GAUSS_NEWTON_PRODUCTS, GAUSS_NEWTON_PRODUCTS)
+        build_libraries([(GAUSS_NEWTON_C.encode(), lib)])
+        if not lib.exists():
+            return None
+    fn = ctypes.CDLL(str(lib)).gauss_newton_parts
+    pointer = ctypes.POINTER(ctypes.c_double)
+    fn.argtypes = [ctypes.c_long] * 4 + [pointer] * 4
+    fn.restype = None
+    return fn
 
 
 def accelerometer_jacobian_kernel(stride: int, L: int, n_theta: int, walk: bool = False) -> ca.Function:

@@ -45,7 +45,7 @@ import numpy as np
 from magyro import so3
 from magyro.memory import give_back
 from magyro.nls.grid import Grid, gyro_at_mag_midpoints
-from magyro.nls.on_numpy import KeptHessian, MapOnNumpy, OnNumpy, node_columns_in, sum_of_squares
+from magyro.nls.on_numpy import GaussNewtonProducts, KeptHessian, MapOnNumpy, OnNumpy, node_columns_in, sum_of_squares
 from magyro.nls.interval import (ACC_GLOBAL_LAYOUT, GLOBAL_LAYOUT, N_ACC_THETA, N_GLOBAL, NO_HUBER,
                                  accelerometer_jacobian, data_layout, global_size, kernel_key, kernel_set, node_size,
                                  unpack_accelerometer, unpack_globals)
@@ -110,7 +110,7 @@ class JointProblem:
         self.n_res_per_interval = 3 * s + 3 + (3 if walk else 0) + (6 if acc else 0)
 
         self.kernel_key = kernel_key(s, L, self.n_theta, walk)
-        self.residual_kernel, self.gradient_kernel, self.gn_kernel = kernel_set(s, L, self.n_theta, walk, compiled)
+        self.residual_kernel, self.gradient_kernel, self.jacobian_kernel = kernel_set(s, L, self.n_theta, walk, compiled)
         th = ca.SX.sym("theta", self.n_theta)
         g = ca.SX.sym("g", self.n_glob_p)
         S, h, K, eps, m_i, tau, _, _, _ = unpack_globals(th, g)
@@ -172,12 +172,9 @@ class JointProblem:
         return self._residual_graph[0]
 
     @cached_property
-    def _hessian_parts(self) -> ca.Function:
-        """One interval's Gauss-Newton parts, densified: triu(J_theta^T J_theta) and its two nodes' columns in
-        compressed-column order (see `on_numpy.node_columns_in`)."""
-        k = self.gn_kernel
-        inputs = [ca.MX.sym(k.name_in(i), k.sparsity_in(i)) for i in range(k.n_in())]
-        return ca.Function("interval_hessian_parts", inputs, [ca.densify(v) for v in k(*inputs)[1:]])
+    def _products(self) -> GaussNewtonProducts:
+        """The Gauss-Newton parts from the intervals' Jacobians, batched on numpy (`on_numpy.GaussNewtonProducts`)."""
+        return GaussNewtonProducts(self.n_theta, self.B, self.compiled)
 
     @cached_property
     def _node_1(self) -> np.ndarray:
@@ -195,7 +192,7 @@ class JointProblem:
         copies the parameters into a work vector (42 MB each)."""
         return {"residuals": MapOnNumpy(self, self.residual_kernel, pieces=True),
                 "gradient": MapOnNumpy(self, self.gradient_kernel, summed=(0, 1)),
-                "gauss_newton": MapOnNumpy(self, self._hessian_parts, summed=(0,), pieces=True)}
+                "jacobian": MapOnNumpy(self, self.jacobian_kernel, pieces=True)}
 
     @cached_property
     def hessian_pattern(self) -> ca.Sparsity:
@@ -246,12 +243,19 @@ class JointProblem:
 
     def hessian_values(self, x: np.ndarray, p: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """The nonzeros of triu(J^T J) at (x, p), in the order of `hessian_sparsity` (in `out` when given): the
-        Gauss-Newton parts assembled piece by piece (`on_numpy.node_columns_in`)."""
-        n_tt = self._hessian_parts.nnz_out(0)
-        size = self._hessian_parts.nnz_out(1)
-        out = np.empty(n_tt + len(self._node_1) + (self.n_int - 1) * size) if out is None else out
-        consume, finish = node_columns_in(out, n_tt, self._node_1, self.n_int, size)
-        return finish(self._maps["gauss_newton"](x, p, consume)[0])
+        intervals' Jacobians a piece at a time, their products batched (`on_numpy.GaussNewtonProducts`), the parts
+        assembled piece by piece (`on_numpy.node_columns_in`)."""
+        products = self._products
+        out = np.empty(products.n_tt + len(self._node_1) + (self.n_int - 1) * products.size) if out is None else out
+        consume, finish = node_columns_in(out, products.n_tt, self._node_1, self.n_int, products.size)
+        H_tt = np.zeros((self.n_theta, self.n_theta))
+        shape = self.jacobian_kernel.size_out(0)[::-1]   # J^T's columns are J's rows
+
+        def parts(a: int, b: int, outputs) -> None:
+            first, second = products(outputs[0].reshape(b - a, *shape), H_tt)
+            consume(a, b, [None, first, second])
+        self._maps["jacobian"](x, p, parts)
+        return finish(products.theta_block(H_tt))
 
     def residual_values(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
         """The whitened residuals at (x, p), interval by interval (`residual_function`'s output)."""
