@@ -439,10 +439,13 @@ the rate seen fully at each instant (three components instead of two) reaches fu
 """)
 
 code(r"""
+import os
 from pathlib import Path
 from magyro.io import load_session
 
-broad = load_session(Path(magyro.__file__).resolve().parents[1] / "data" / "broad-02.parquet")
+# the repository's data/ (the notebook sits in docs/); MAGYRO_DATA elsewhere (tests/test_notebook.py sets it)
+data = Path(os.environ.get("MAGYRO_DATA", Path.cwd().parent / "data"))
+broad = load_session(data / "broad-02.parquet")
 rows = {}
 for label, (t0, t1) in {"first rest": (37.1, 39.9), "rest + 1.6 s of motion": (37.1, 41.5),
                         "whole trial": (0.0, 1e9)}.items():
