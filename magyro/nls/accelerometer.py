@@ -180,11 +180,17 @@ def solved_hand_weights(e: np.ndarray, start: AccelerometerStart) -> np.ndarray:
     weighted as independent, a few seconds of sway counted as dozens of independent intervals and pulled the gyro
     with them (paper-table1-acc, 12 seeds: the gyro up to 4.8 of its std from the truth, its std up to 1.9x the
     same session's without the accelerometer; weighted by c: 2.1 and 1.13x)."""
-    used = start.count > 0
+    return hand_weights(e, start, correlation_factor(hand_autocorrelation(e, start.count > 0, start)))
+
+
+def hand_autocorrelation(x: np.ndarray, used: np.ndarray, start: AccelerometerStart) -> np.ndarray:
+    """The hand's autocorrelation over intervals (`tapered_autocorrelation`, up to HAND_MAX_LAG_S) from a series x
+    (n_int, k) of what it leaves in the `used` intervals, over its share of x's mean square (the rest is the white
+    noise's)."""
     max_lag = min(int(used.sum()) // 2, int(round(HAND_MAX_LAG_S / float(np.median(start.interval_s)))))
-    total = float(np.mean(e[used] ** 2)) if used.any() else 0.0
+    total = float(np.mean(x[used] ** 2)) if used.any() else 0.0
     share = max(total - float(np.mean(white_variance(start)[used])), 0.0) / total if total > 0 else 0.0
-    return hand_weights(e, start, correlation_factor(tapered_autocorrelation(e[used], max_lag, share)))
+    return tapered_autocorrelation(x[used], max_lag, share)
 
 
 def correlation_factor(rho: np.ndarray) -> float:
@@ -253,11 +259,8 @@ def hand_motion(excess: np.ndarray, weight: np.ndarray, start: AccelerometerStar
     window = max(1, int(round(HAND_SIZE_WINDOW_S / float(np.median(start.interval_s)))))
     size = np.sqrt(np.sum(residuals**2, axis=1) / 3.0)
     hand = np.where(used, np.maximum(local_mean_square(size, used, window) - white, 0.0), 0.0)
-    max_lag = min(int(used.sum()) // 2, int(round(HAND_MAX_LAG_S / float(np.median(start.interval_s)))))
     e = np.where(used, excess - (np.mean(excess[used]) if used.any() else 0.0), 0.0)  # less what g or a scale leaves
-    total = float(np.mean(e[used] ** 2)) if used.any() else 0.0
-    share = max(total - float(np.mean(white[used])), 0.0) / total if total > 0 else 0.0
-    return HandMotion(weight, np.sqrt(hand), tapered_autocorrelation(e[used][:, None], max_lag, share))
+    return HandMotion(weight, np.sqrt(hand), hand_autocorrelation(e[:, None], used, start))
 
 
 def tapered_autocorrelation(z: np.ndarray, max_lag: int, hand_share: float) -> np.ndarray:

@@ -34,6 +34,7 @@ import numpy as np
 from magyro.observability.advice import describe_direction
 from magyro.observability.gate import AXES, FLOOR_FACTOR, NUMERICAL_RTOL, directional_rank, noise_matrix
 from magyro.observability.matrix import information_integral, interpolate_rows, trapezoid_weights
+from magyro.observability.report import SPHERE_BANDS, SPHERE_GRID, SPHERE_SECTORS, json_list, json_number, sphere_cell
 from magyro.session import hole_spans_s, overlaps_a_hole
 from magyro.text import significant
 
@@ -62,8 +63,8 @@ class WeakDirection:
         return self.snr_field <= FLOOR_FACTOR < self.snr_gravity
 
     def to_dict(self) -> dict:
-        return {"in_words": self.in_words, "vector": _arr(self.vector), "information_gain": _num(self.information_gain),
-                "signal_to_noise_field": _num(self.snr_field), "signal_to_noise_gravity": _num(self.snr_gravity),
+        return {"in_words": self.in_words, "vector": json_list(self.vector), "information_gain": json_number(self.information_gain),
+                "signal_to_noise_field": json_number(self.snr_field), "signal_to_noise_gravity": json_number(self.snr_gravity),
                 "rescued": self.rescued}
 
 
@@ -83,13 +84,13 @@ class GyroWithGravity:
     field_gravity_angle_deg: float     # median angle between the field's and gravity's lines (0-90)
 
     def to_dict(self) -> dict:
-        return {"rank": int(self.rank), "condition": _num(self.condition), "eigenvalues": _arr(self.eigenvalues),
-                "rank_field_only": int(self.rank_field_only), "condition_field_only": _num(self.condition_field_only),
+        return {"rank": int(self.rank), "condition": json_number(self.condition), "eigenvalues": json_list(self.eigenvalues),
+                "rank_field_only": int(self.rank_field_only), "condition_field_only": json_number(self.condition_field_only),
                 "rank_gravity_only": int(self.rank_gravity_only),
                 "field_only_weakest": [w.to_dict() for w in self.weakest],
-                "rotation_about_field_share": _num(self.rotation_about_field),
-                "rotation_about_gravity_share": _num(self.rotation_about_gravity),
-                "field_gravity_angle_deg": _num(self.field_gravity_angle_deg)}
+                "rotation_about_field_share": json_number(self.rotation_about_field),
+                "rotation_about_gravity_share": json_number(self.rotation_about_gravity),
+                "field_gravity_angle_deg": json_number(self.field_gravity_angle_deg)}
 
 
 @dataclass
@@ -120,25 +121,24 @@ class AccelerometerObservability:
         return self.cells_visited / self.cells
 
     def to_dict(self) -> dict:
-        from magyro.observability.report import SPHERE_GRID
         return {
             "frames": "the accelerometer's axes taken for the magnetometer's (within the few degrees of C_b_a, C_b_m)",
-            "g_reference_m_s2": _num(self.g_reference_m_s2),
-            "weighting": {"still_scale": STILL_SCALE, "still_seconds": _num(self.still_s),
+            "g_reference_m_s2": json_number(self.g_reference_m_s2),
+            "weighting": {"still_scale": STILL_SCALE, "still_seconds": json_number(self.still_s),
                           "rule": "w = exp(-((|y| - g) / (still_scale g))^2 / 2)"},
-            "noise": {"white_m_s2": _num(self.white_noise_m_s2), "hand_m_s2": _num(self.hand_m_s2)},
+            "noise": {"white_m_s2": json_number(self.white_noise_m_s2), "hand_m_s2": json_number(self.hand_m_s2)},
             "parameters": {"model": "f = A y + b (12 parameters); information (sum of [u;1][u;1]^T) (x) I, u = y / g",
-                           "rank": int(self.rank), "condition": _num(self.condition),
-                           "eigenvalues": _arr(self.eigenvalues), "coordinates": list(ACC_PARAMETERS),
-                           "directions": [{"eigenvalue": _num(e), "signal_to_noise": _num(s), "excited": bool(x),
-                                           "vector": _arr(v), "in_words": w} for e, s, x, v, w in self.directions]},
-            "gravity_spread": {"smallest": _num(self.spread), "eigenvalues": _arr(self.spread_eigenvalues),
-                               "weakest_body_direction": _arr(self.spread_weakest), "enough": SPREAD_ENOUGH},
-            "poses": {f: {"seconds": _num(self.face_s[f]), "held": bool(self.face_s[f] >= FACE_ENOUGH_S)}
+                           "rank": int(self.rank), "condition": json_number(self.condition),
+                           "eigenvalues": json_list(self.eigenvalues), "coordinates": list(ACC_PARAMETERS),
+                           "directions": [{"eigenvalue": json_number(e), "signal_to_noise": json_number(s), "excited": bool(x),
+                                           "vector": json_list(v), "in_words": w} for e, s, x, v, w in self.directions]},
+            "gravity_spread": {"smallest": json_number(self.spread), "eigenvalues": json_list(self.spread_eigenvalues),
+                               "weakest_body_direction": json_list(self.spread_weakest), "enough": SPREAD_ENOUGH},
+            "poses": {f: {"seconds": json_number(self.face_s[f]), "held": bool(self.face_s[f] >= FACE_ENOUGH_S)}
                       for f in FACES},
             "poses_meaning": "+x: the x axis up (the reading +g on x, gravity along -x in the body); -x: x down",
             "pose_cone_deg": FACE_CONE_DEG, "pose_enough_s": FACE_ENOUGH_S,
-            "sphere": {"fraction_visited": _num(self.sphere_fraction), "cells_visited": int(self.cells_visited),
+            "sphere": {"fraction_visited": json_number(self.sphere_fraction), "cells_visited": int(self.cells_visited),
                        "cells": int(self.cells), "grid": SPHERE_GRID.replace("magnetometer frame", "accelerometer frame")},
             "advice": list(self.advice),
             "gyro_with_gravity": None if self.gyro is None else self.gyro.to_dict(),
@@ -365,7 +365,6 @@ def accelerometer_parameters(t_acc_s, acc_m_s2, rests_s, t_gyro_s=None, gyro_rad
     """Part 1 alone (`gyro` None), or None without a usable accelerometer; g and the white noise are read at the
     gyro's `rests_s` (none: `reference_g`'s and `accelerometer_noise`'s fallbacks; `white_m_s2`: given). Called by
     `observe_accelerometer`, and by `magyro watch` on the data received so far."""
-    from magyro.observability.report import SPHERE_BANDS, SPHERE_SECTORS, sphere_cell
 
     ta, acc = _finite(t_acc_s, acc_m_s2)
     if ta is None:
@@ -428,18 +427,6 @@ def _finite(t_s, acc):
     if keep.sum() < MIN_SAMPLES:
         return None, None
     return np.asarray(t_s, dtype=float)[keep], np.asarray(acc, dtype=float)[keep]
-
-
-def _num(x):
-    if x is None:
-        return None
-    x = float(x)
-    return x if math.isfinite(x) else None
-
-
-def _arr(a):
-    a = np.asarray(a, dtype=float)
-    return _num(a) if a.ndim == 0 else [_arr(v) for v in a]
 
 
 def _fmt(x) -> str:

@@ -138,22 +138,22 @@ class ObservabilityReport:
             "verdict": self.verdict,
             "reason": self.reason,
             "rank": int(a.rank),
-            "condition": _num(a.condition),
-            "eigenvalues": _arr(a.eigenvalues_normalised),
-            "largest_eigenvalue": _num(np.max(a.eigenvalues)),
+            "condition": json_number(a.condition),
+            "eigenvalues": json_list(a.eigenvalues_normalised),
+            "largest_eigenvalue": json_number(np.max(a.eigenvalues)),
             "parameters": list(PARAMETER_NAMES),
             "directions": directions_dict(a),
             "floor_factor": FLOOR_FACTOR,
-            "full_rank_at_s": _num(self.full_rank_at_s),
-            "well_conditioned_at_s": _num(self.well_conditioned_at_s),
+            "full_rank_at_s": json_number(self.full_rank_at_s),
+            "well_conditioned_at_s": json_number(self.well_conditioned_at_s),
             "well_conditioned_below": WELL_CONDITIONED,
             "weak_directions": list(self.weak_directions),
             "advice": list(self.advice),
             "coverage": {
-                "axes": {AXES[i]: {"angle_turned_deg": _num(self.coverage.angle_turned_deg[i]),
-                                   "peak_rate_deg_s": _num(self.coverage.peak_rate_deg_s[i])} for i in range(3)},
+                "axes": {AXES[i]: {"angle_turned_deg": json_number(self.coverage.angle_turned_deg[i]),
+                                   "peak_rate_deg_s": json_number(self.coverage.peak_rate_deg_s[i])} for i in range(3)},
                 "rate_reference": self.coverage.rate_reference,
-                "sphere": {"fraction_visited": _num(self.coverage.sphere_fraction),
+                "sphere": {"fraction_visited": json_number(self.coverage.sphere_fraction),
                            "cells_visited": int(self.coverage.cells_visited),
                            "cells": int(self.coverage.cells), "grid": SPHERE_GRID},
             },
@@ -161,15 +161,15 @@ class ObservabilityReport:
             "prediction": self.prediction,
             "targets": dataclasses.asdict(self.targets),
             "ellipsoid": {"fitted": self.ellipsoid_fitted, "problem": self.ellipsoid_problem,
-                          "rms_norm_error": _num(self.ellipsoid_rms_norm_error)},
+                          "rms_norm_error": json_number(self.ellipsoid_rms_norm_error)},
             "noise": self.noise,
             "session": {"duration_s": self.duration_s, "t_start_s": self.t_start_s,
                         "analysed_span_s": self.analysed_span_s, "rests_s": self.rests_s,
                         "gyro_samples": self.gyro_samples, "magnetometer_samples": self.mag_samples,
                         "gyro_rate_hz": self.gyro_rate_hz, "magnetometer_rate_hz": self.mag_rate_hz,
                         "magnetometer_unit": self.mag_unit},
-            "timeline": {"t_s": _arr(tl.t_s), "rank": [int(r) for r in tl.rank], "condition": _arr(tl.condition),
-                         "eigenvalues": _arr(tl.eigenvalues), "signal_to_noise": _arr(tl.signal_to_noise)},
+            "timeline": {"t_s": json_list(tl.t_s), "rank": [int(r) for r in tl.rank], "condition": json_list(tl.condition),
+                         "eigenvalues": json_list(tl.eigenvalues), "signal_to_noise": json_list(tl.signal_to_noise)},
             **({"recording": self.recording.to_dict()} if self.recording is not None else {}),
             **({"accelerometer": self.accelerometer.to_dict()} if self.accelerometer is not None else {}),
         }
@@ -244,12 +244,12 @@ def directions_dict(a: ObservabilityAnalysis) -> list[dict]:
     snr = direction_snr(a)
     order = np.argsort(snr, kind="stable")
     top = float(np.max(a.eigenvalues))
-    return [{"eigenvalue": _num(a.eigenvalues[k] / top), "signal_to_noise": _num(snr[k]),
-             "excited": bool(i >= 12 - a.rank), "vector": _arr(a.eigenvectors[:, k]),
+    return [{"eigenvalue": json_number(a.eigenvalues[k] / top), "signal_to_noise": json_number(snr[k]),
+             "excited": bool(i >= 12 - a.rank), "vector": json_list(a.eigenvectors[:, k]),
              "in_words": describe_direction(a.eigenvectors[:, k])} for i, k in enumerate(order)]
 
 
-def _num(x):
+def json_number(x):
     """A JSON number, or None for missing / inf / NaN."""
     if x is None:
         return None
@@ -257,18 +257,19 @@ def _num(x):
     return x if math.isfinite(x) else None
 
 
-def _arr(a):
+def json_list(a):
+    """A JSON (nested) list of numbers, None for inf / NaN; a 0-d array a number."""
     a = np.asarray(a, dtype=float)
     if a.ndim == 0:
-        return _num(a)
-    return [_arr(v) for v in a]
+        return json_number(a)
+    return [json_list(v) for v in a]
 
 
 def _std_dict(std: Std | None) -> dict:
     """The predicted std as JSON, laid out like the calibration file's `std`; null where not finite (all when None)."""
     if std is None:
-        return {k: _arr(np.full(shape, np.nan)) for k, shape in Std.SHAPES.items()}
-    return {f.name: _arr(getattr(std, f.name)) for f in dataclasses.fields(std)}
+        return {k: json_list(np.full(shape, np.nan)) for k, shape in Std.SHAPES.items()}
+    return {f.name: json_list(getattr(std, f.name)) for f in dataclasses.fields(std)}
 
 
 def fmt(x) -> str:
