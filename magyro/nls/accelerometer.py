@@ -37,6 +37,7 @@ from magyro.session import HOLE_FACTOR
 HAND_WINDOW_S = 1.0          # the weights: the hand's acceleration variance is measured over this window
 HAND_MAX_LAG_S = 30.0        # its autocorrelation is measured up to this lag (a hand's slowest sway)
 HAND_SIZE_WINDOW_S = 30.0    # the std: its variance is measured over as long (`hand_motion`)
+HAND_REACH_M = 0.5           # the device's position stays within this std (m) of where it is turned (`reach_cap`)
 
 
 @dataclass
@@ -151,6 +152,7 @@ class HandMotion:
     weight: np.ndarray
     hand_std_m_s2: np.ndarray
     correlation: np.ndarray
+    variance_m2_s4: float       # the hand's variance per axis the correlation's spectrum is capped with (`reach_cap`)
 
 
 def start_residuals(start: AccelerometerStart, C_m_i_nodes: np.ndarray) -> np.ndarray:
@@ -180,30 +182,72 @@ def solved_hand_weights(e: np.ndarray, start: AccelerometerStart) -> np.ndarray:
     weighted as independent, a few seconds of sway counted as dozens of independent intervals and pulled the gyro
     with them (paper-table1-acc, 12 seeds: the gyro up to 4.8 of its std from the truth, its std up to 1.9x the
     same session's without the accelerometer; weighted by c: 2.1 and 1.13x)."""
-    return hand_weights(e, start, correlation_factor(hand_autocorrelation(e, start.count > 0, start)))
+    used = start.count > 0
+    rho = hand_autocorrelation(e, used, start)
+    return hand_weights(e, start, correlation_factor(rho, hand_variance(e, used, start), interval_of(start)))
+
+
+def hand_variance(x: np.ndarray, used: np.ndarray, start: AccelerometerStart) -> float:
+    """The hand's variance per axis, m^2/s^4, in a series x (n_int, k) of what it leaves in the `used` intervals:
+    x's mean square less the white noise's."""
+    if not used.any():
+        return 0.0
+    return max(float(np.mean(x[used] ** 2)) - float(np.mean(white_variance(start)[used])), 0.0)
+
+
+def interval_of(start: AccelerometerStart) -> float:
+    """The grid's typical interval, s: the time step of the hand's autocorrelation."""
+    return float(np.median(start.interval_s))
 
 
 def hand_autocorrelation(x: np.ndarray, used: np.ndarray, start: AccelerometerStart) -> np.ndarray:
     """The hand's autocorrelation over intervals (`tapered_autocorrelation`, up to HAND_MAX_LAG_S) from a series x
     (n_int, k) of what it leaves in the `used` intervals, over its share of x's mean square (the rest is the white
     noise's)."""
-    max_lag = min(int(used.sum()) // 2, int(round(HAND_MAX_LAG_S / float(np.median(start.interval_s)))))
+    max_lag = min(int(used.sum()) // 2, int(round(HAND_MAX_LAG_S / interval_of(start))))
     total = float(np.mean(x[used] ** 2)) if used.any() else 0.0
-    share = max(total - float(np.mean(white_variance(start)[used])), 0.0) / total if total > 0 else 0.0
+    share = hand_variance(x, used, start) / total if total > 0 else 0.0
     return tapered_autocorrelation(x[used], max_lag, share)
 
 
-def correlation_factor(rho: np.ndarray) -> float:
-    """The peak over frequency of the spectrum of the autocorrelation rho (lags 0, 1, ..., tapered: never negative)
-    against a white process's of the same variance (at least 1): how much more variance a correlated process puts
-    at its worst frequency than independent intervals would."""
+def hand_spectrum(rho: np.ndarray, n: int, variance_m2_s4: float, interval_s: float) -> np.ndarray:
+    """The hand's spectrum over a white one's of the same variance at the n // 2 + 1 frequencies of an n-point
+    transform (n > 2 max lag: no lag wraps around): that of the autocorrelation rho (lags 0, 1, ...; tapered, so
+    never negative), capped where no hand could put it (`reach_cap`)."""
     lag = len(rho) - 1
-    n = 1 << int(np.ceil(np.log2(8 * (lag + 1))))
     kernel = np.zeros(n)
     kernel[: lag + 1] = rho
     if lag:
         kernel[n - lag :] = rho[1:][::-1]
-    return float(max(np.fft.rfft(kernel).real.max(), 1.0))
+    spectrum = np.fft.rfft(kernel).real
+    return np.minimum(spectrum, reach_cap(np.fft.rfftfreq(n, interval_s), variance_m2_s4, interval_s))
+
+
+def reach_cap(f_hz: np.ndarray, variance_m2_s4: float, interval_s: float) -> np.ndarray:
+    """The most of the hand's spectrum (over a white one's of its variance per axis, `variance_m2_s4`) that a
+    device held within HAND_REACH_M of where it is turned can have at the frequencies f_hz.
+
+    Its acceleration is its position's second derivative, so its power below f is at most (2 pi f)^4 times the
+    position's variance: d/df of (2 pi f)^4 HAND_REACH_M^2 bounds its one-sided density, which a white process of
+    the hand's variance over intervals of interval_s has at 2 variance interval_s. The bound is zero at zero
+    frequency: a hand has no acceleration that lasts. What the measured autocorrelation puts there is the fit's
+    own slow error (a scale or bias not yet right, a tilt the room's field pulled the attitude into), and counted
+    as hand it made the std count the room twice (BROAD trial 30, a magnet beside the path: the gyro's bias z std
+    1.5 deg/s with the accelerometer, 12x the std without it, while its dead reckoning improved 4.5x; the optical
+    position puts under 0.1 % of every trial's hand acceleration below 0.1 Hz, the autocorrelation put 12x a white
+    process's there). HAND_REACH_M: BROAD's optical position has a std of 0.04-0.16 m on each axis in the
+    hand-turned trials and 0.14-0.45 m in those that carry the device about (21, 30)."""
+    if variance_m2_s4 <= 0:
+        return np.full(np.shape(f_hz), np.inf)
+    return 4.0 * (2.0 * np.pi) ** 4 * np.asarray(f_hz) ** 3 * HAND_REACH_M**2 / (2.0 * variance_m2_s4 * interval_s)
+
+
+def correlation_factor(rho: np.ndarray, variance_m2_s4: float, interval_s: float) -> float:
+    """The peak over frequency of the hand's spectrum (`hand_spectrum` of the autocorrelation rho, lags 0, 1, ...)
+    against a white process's of the same variance (at least 1): how much more variance a correlated process puts
+    at its worst frequency than independent intervals would."""
+    n = 1 << int(np.ceil(np.log2(8 * len(rho))))
+    return float(max(hand_spectrum(rho, n, variance_m2_s4, interval_s).max(), 1.0))
 
 
 def white_variance(start: AccelerometerStart) -> np.ndarray:
@@ -260,7 +304,8 @@ def hand_motion(excess: np.ndarray, weight: np.ndarray, start: AccelerometerStar
     size = np.sqrt(np.sum(residuals**2, axis=1) / 3.0)
     hand = np.where(used, np.maximum(local_mean_square(size, used, window) - white, 0.0), 0.0)
     e = np.where(used, excess - (np.mean(excess[used]) if used.any() else 0.0), 0.0)  # less what g or a scale leaves
-    return HandMotion(weight, np.sqrt(hand), hand_autocorrelation(e[:, None], used, start))
+    variance = float(np.mean(hand[used])) if used.any() else 0.0
+    return HandMotion(weight, np.sqrt(hand), hand_autocorrelation(e[:, None], used, start), variance)
 
 
 def tapered_autocorrelation(z: np.ndarray, max_lag: int, hand_share: float) -> np.ndarray:

@@ -103,7 +103,7 @@ def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.nda
     held = np.divide(1.0, sol.acc_weight**2, out=np.zeros_like(sol.acc_weight), where=used) - white_variance(start)
     weights_hand = np.where(used, np.sqrt(np.maximum(held, 0.0)), 0.0)
     return hand_covariance_term(problem, sol.x, sol.p, reduced, reduced.information, hand.hand_std_m_s2,
-                                weights_hand, hand.correlation)
+                                weights_hand, hand.correlation, hand.variance_m2_s4)
 
 
 def not_converged_message(sol, decrement: float) -> str:
