@@ -16,8 +16,12 @@ of their variance (BROAD 07, 09, 21, 30: K_a 0.12-0.75 and C_b_a up to 76 deg). 
     acceleration variance there (the residuals' mean square over a second, less the white part: zero at rest,
     tenths of m/s^2 while a hand turns the device). The hand's acceleration lasts longer than an interval: the
     std counts that correlation (nls/hand_motion.py);
-  * at the node on each rest at either end, the rest's mean accelerometer against gravity, weighted by the white
-    noise of that mean alone: still, the device's attitude is that node's, and the hand adds nothing.
+  * at the first node inside each rest (`rests_at_nodes`), the rest's mean accelerometer against gravity, weighted
+    by the white noise of that mean alone: still, the device's attitude is that node's, and the hand adds nothing.
+    The interval means wholly inside a rest are left out: the rest counts once.
+
+A hand that accelerates the device by more than HAND_LIMIT_OF_G of g while turning moves with the turning and biases
+the fit in a way no std counts: the solve refuses the accelerometer then (`hand_too_big`, nls/run.py).
 
 The weights come from the residuals at the start and are measured again from the solved residuals
 (`hand_weights`, called between IPOPT's passes).
@@ -37,6 +41,7 @@ from magyro.session import HOLE_FACTOR
 HAND_WINDOW_S = 1.0          # the weights: the hand's acceleration variance is measured over this window
 HAND_MAX_LAG_S = 30.0        # its autocorrelation is measured up to this lag (a hand's slowest sway)
 HAND_SIZE_WINDOW_S = 30.0    # the std: its variance is measured over as long (`hand_motion`)
+HAND_LIMIT_OF_G = 0.07       # the hand's RMS acceleration while turning above which gravity is not read (`hand_too_big`)
 HAND_REACH_M = 0.5           # the device's position stays within this std (m) of where it is turned (`reach_cap`)
 
 
@@ -47,10 +52,7 @@ class AccelerometerStart:
     y: np.ndarray              # (n_int, stride, 3) raw accelerometer at each segment start
     share: np.ndarray          # (n_int, stride) weight of each segment start in its interval's mean (rows sum to 1 or 0)
     count: np.ndarray          # (n_int,) samples in each interval's mean
-    rest_start: np.ndarray | None   # (mean raw accelerometer of the rest at the first node, its samples) or None
-    rest_end: np.ndarray | None
-    rest_start_n: int
-    rest_end_n: int
+    rests: list                # RestAtNode of every rest that holds a node: its mean counts there, once
     A0: np.ndarray
     b0: np.ndarray
     u0_i: np.ndarray           # unit up direction in frame i
@@ -72,10 +74,10 @@ class AccelerometerStart:
         w = self.weight if weight is None else weight
         rest0, rest1 = np.zeros((n, 3)), np.zeros((n, 3))
         w0, w1 = np.zeros((n, 1)), np.zeros((n, 1))
-        if self.rest_start is not None:
-            rest0[0], w0[0] = self.rest_start, 1.0 / (self.sigma_white_m_s2 / np.sqrt(self.rest_start_n))
-        if self.rest_end is not None:
-            rest1[-1], w1[-1] = self.rest_end, 1.0 / (self.sigma_white_m_s2 / np.sqrt(self.rest_end_n))
+        for r in self.rests:     # the kernel reads a rest at an interval's start node, or at the last interval's end
+            mean, weight = (rest0, w0) if r.node < n else (rest1, w1)
+            k = min(r.node, n - 1)
+            mean[k], weight[k] = r.mean_raw, np.sqrt(r.samples) / self.sigma_white_m_s2
         return {"yacc": self.y.reshape(n, -1), "cacc": self.share, "w_acc": np.asarray(w, float)[:, None],
                 "yrest0": rest0, "wrest0": w0, "yrest1": rest1, "wrest1": w1}
 
@@ -104,11 +106,36 @@ def rest_mean(t_s: np.ndarray, acc: np.ndarray, segment: tuple[float, float] | N
     return (acc[keep].mean(axis=0), int(keep.sum())) if keep.sum() >= 10 else (None, 0)
 
 
-def end_rests(full_session, t_node_s: np.ndarray, rest_segments) -> tuple:
-    """(the rest the first node sits in, the rest the last node sits in), each (start, end) s or None."""
-    first = next((seg for seg in rest_segments if seg[0] <= t_node_s[0] <= seg[1]), None)
-    last = next((seg for seg in rest_segments if seg[0] <= t_node_s[-1] <= seg[1]), None)
-    return first, (last if last is not first else None)
+@dataclass(frozen=True)
+class RestAtNode:
+    """A rest that holds a node: the node, the rest's mean raw accelerometer, its samples, its span (s)."""
+
+    node: int
+    mean_raw: np.ndarray
+    samples: int
+    span_s: tuple[float, float]
+
+
+def rests_at_nodes(full_session, t_node_s: np.ndarray, rest_segments) -> list[RestAtNode]:
+    """Every rest of the session (the front end's, `rest_segments`) that holds a node and has 10 samples, at the
+    first node inside it: still, the device's attitude there is the node's and the hand adds nothing, so the rest's
+    mean is read against gravity at that node, weighted by the white noise of that mean alone."""
+    out = []
+    for seg in rest_segments:
+        inside = np.flatnonzero((t_node_s >= seg[0]) & (t_node_s <= seg[1]))
+        mean, n = rest_mean(full_session.t_acc_s, full_session.acc_m_s2, seg)
+        if len(inside) and mean is not None:
+            out.append(RestAtNode(int(inside[0]), mean, n, (float(seg[0]), float(seg[1]))))
+    return out
+
+
+def inside_rests(t_node_s: np.ndarray, rests: list[RestAtNode]) -> np.ndarray:
+    """(n_int,) True for an interval wholly inside a rest counted at its node: its samples are in the rest's mean
+    already, and counted again as an interval's mean they made the rest count twice."""
+    inside = np.zeros(len(t_node_s) - 1, bool)
+    for r in rests:
+        inside |= (t_node_s[:-1] >= r.span_s[0]) & (t_node_s[1:] <= r.span_s[1])
+    return inside
 
 
 def white_noise_m_s2(full_session, rest_segments) -> float:
@@ -128,17 +155,17 @@ def accelerometer_start(full_session, session, grid: Grid, C_m_i_nodes: np.ndarr
     gyro's), b0 = 0, u^i from the first rest (or the first interval) read in that frame; weights from the
     residuals there."""
     y, ok = samples_at(session.t_acc_s, session.acc_m_s2, segment_start_times(grid))
+    rests = rests_at_nodes(full_session, grid.t_node_s, rest_segments)
+    ok &= ~inside_rests(grid.t_node_s, rests)[:, None]
     count = ok.sum(axis=1)
     share = np.where(count[:, None] > 0, ok / np.maximum(count, 1)[:, None], 0.0)
-    first, last = end_rests(full_session, grid.t_node_s, rest_segments)
-    rest0, n0 = rest_mean(full_session.t_acc_s, full_session.acc_m_s2, first)
-    rest1, n1 = rest_mean(full_session.t_acc_s, full_session.acc_m_s2, last)
     A0 = qr_split(K0)[0]
-    at_node0 = rest0 if rest0 is not None else np.einsum("sj,sjk->k", share[:1], y[:1])
+    first = next((r for r in rests if r.node == 0), None)
+    at_node0 = first.mean_raw if first is not None else np.einsum("sj,sjk->k", share[:1], y[:1])
     u0 = A0 @ at_node0
     u0 = u0 / np.linalg.norm(u0)
     sigma = white_noise_m_s2(full_session, rest_segments)
-    start = AccelerometerStart(y, share, count, rest0, rest1, n0, n1, A0, np.zeros(3), u0, float(g_m_s2), sigma,
+    start = AccelerometerStart(y, share, count, rests, A0, np.zeros(3), u0, float(g_m_s2), sigma,
                                grid.interval_s, np.zeros(len(count)), grid)
     start.weight = hand_weights(start_residuals(start, C_m_i_nodes), start)
     return start
@@ -170,8 +197,7 @@ def hand_weights(e: np.ndarray, start: AccelerometerStart, correlated: float = 1
     `correlated` (`correlation_factor`: 1 for a hand independent from one interval to the next)."""
     used = start.count > 0
     white = white_variance(start)
-    window = max(1, int(round(HAND_WINDOW_S / float(np.median(start.interval_s)))))
-    local = local_mean_square(np.sqrt(np.sum(e**2, axis=1) / 3.0), used, window)
+    local = local_mean_square(np.sqrt(np.sum(e**2, axis=1) / 3.0), used, intervals_in(HAND_WINDOW_S, start))
     return np.where(used, 1.0 / np.sqrt(white + correlated * np.maximum(local - white, 0.0)), 0.0)
 
 
@@ -193,6 +219,11 @@ def hand_variance(x: np.ndarray, used: np.ndarray, start: AccelerometerStart) ->
     if not used.any():
         return 0.0
     return max(float(np.mean(x[used] ** 2)) - float(np.mean(white_variance(start)[used])), 0.0)
+
+
+def intervals_in(seconds: float, start: AccelerometerStart) -> int:
+    """How many of the grid's typical intervals make `seconds` (at least 1)."""
+    return max(1, int(round(seconds / interval_of(start))))
 
 
 def interval_of(start: AccelerometerStart) -> float:
@@ -248,6 +279,19 @@ def correlation_factor(rho: np.ndarray, variance_m2_s4: float, interval_s: float
     at its worst frequency than independent intervals would."""
     n = 1 << int(np.ceil(np.log2(8 * len(rho))))
     return float(max(hand_spectrum(rho, n, variance_m2_s4, interval_s).max(), 1.0))
+
+
+def hand_too_big(hand_rms_m_s2: float, g_m_s2: float) -> bool:
+    """Does the hand accelerate the device too much for gravity to calibrate the accelerometer: above
+    HAND_LIMIT_OF_G of g (RMS per axis while turning, `hand_motion`)?
+
+    Such a hand moves with the turning, and no std counts what that does: the fit takes part of it for scale and
+    bias. BROAD against its optical truth: with the hand's acceleration taken out of the readings (the optical
+    position's, turned into the body), trial 09's K_a x came out 0.994 +/- 0.004; as recorded, 0.857 +/- 0.011
+    (the hand 1.19 m/s^2 RMS). Trials 07, 09, 21, 30, 34, 36 (hand 1.0-2.4 m/s^2) gave scale factors 4-30 % from
+    1; trials 02, 03, 05 (hand 0.32-0.43 m/s^2) within 0.35 % and their std, the optical position's hand
+    0.27-0.35 m/s^2. The bound sits between the two groups: 0.69 m/s^2 at 9.81."""
+    return hand_rms_m_s2 > HAND_LIMIT_OF_G * g_m_s2
 
 
 def white_variance(start: AccelerometerStart) -> np.ndarray:

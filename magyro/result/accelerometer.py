@@ -28,6 +28,7 @@ class AccelerometerCalibration:
     std_misalignment_deg: np.ndarray
     lever_arm_m: np.ndarray | None = None       # from the point the device turned about, in the magnetometer's frame
     std_lever_arm_m: np.ndarray | None = None
+    hand_rms_m_s2: float | None = None          # the hand's acceleration while turning, RMS per axis (nls `hand_motion`)
 
     @classmethod
     def from_reported(cls, K_a, bias_m_s2, C_b_a, g_m_s2, up_i, std_vector, lever_arm_m=None,
@@ -59,7 +60,8 @@ class AccelerometerCalibration:
     def to_dict(self) -> dict:
         return {"K_a": as_list(self.K_a), "bias_m_s2": as_list(self.bias_m_s2), "C_b_a": as_list(self.C_b_a),
                 "euler_deg": as_list(self.euler_deg), "g_m_s2": float(self.g_m_s2), "up_i": as_list(self.up_i),
-                **({} if self.lever_arm_m is None else {"lever_arm_m": as_list(self.lever_arm_m)})}
+                **({} if self.lever_arm_m is None else {"lever_arm_m": as_list(self.lever_arm_m)}),
+                **({} if self.hand_rms_m_s2 is None else {"hand_rms_m_s2": float(self.hand_rms_m_s2)})}
 
     def std_dict(self) -> dict:
         return {"K_a": as_list(self.std_K_a), "bias_m_s2": as_list(self.std_bias_m_s2),
@@ -79,7 +81,8 @@ class AccelerometerCalibration:
                    read_array(data, "up_i", (3,), where) if "up_i" in data else np.array([0.0, 0.0, 1.0]),
                    zero("K_a", (3, 3)), zero("bias_m_s2", (3,)), zero("misalignment_deg", (3,)),
                    read_array(data, "lever_arm_m", (3,), where) if "lever_arm_m" in data else None,
-                   zero("lever_arm_m", (3,)) if "lever_arm_m" in data else None)
+                   zero("lever_arm_m", (3,)) if "lever_arm_m" in data else None,
+                   read_number(data, "hand_rms_m_s2", where, finite=True) if "hand_rms_m_s2" in data else None)
 
     def table_lines(self) -> list[str]:
         lines = ["accelerometer K_a (scale on diagonal, non-orthogonality above), +/- 1 sigma"]
