@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import degrade
 from magyro import EKF, calibrate
 from magyro.errors import InputError, ObservabilityError
 from magyro.front.rests import find_rests
@@ -57,6 +58,16 @@ def test_gravity_helps_the_gyro(broad02_acc_solved, broad02_solved):
     _, base = broad02_solved
     assert np.all(cal.std.bias_deg_s < base.std.bias_deg_s)
     assert np.all(cal.std.K_g[np.triu_indices(3)] <= 1.02 * base.std.K_g[np.triu_indices(3)])
+
+
+def test_bursty_stamps_leave_intervals_without_the_accelerometer_and_a_finite_std():
+    """A logger that stamps buffered bursts on arrival (tests/degrade.py): after the restamp some intervals hold no
+    accelerometer sample (weight 0), where the hand's std the weights hold was 1/0^2 - white = inf, times 0 = nan,
+    and every std came out nan and refused (exit 3)."""
+    bursty = degrade.burst_stamps(degrade.load("broad-02"))
+    cal = calibrate(bursty, Options(accelerometer=True))
+    assert np.all(np.isfinite(cal.std.K_g)) and np.all(np.isfinite(cal.accelerometer.std_K_a))
+    assert np.all(cal.accelerometer.std_bias_m_s2 < 0.05)
 
 
 def test_json_round_trip(broad02_acc_solved, tmp_path):

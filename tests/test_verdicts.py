@@ -80,6 +80,16 @@ def test_a_few_seconds_of_a_real_recording_are_too_little_motion_for_both_verdic
     assert report.verdict == "insufficient", report.verdict
 
 
+@pytest.mark.parametrize("start_s, seconds", [(100, 2.0), (100, 3.5)])
+def test_a_few_seconds_with_the_accelerometer_are_refused_not_a_traceback(start_s, seconds):
+    """The same cuts with the accelerometer: the hand's size was measured over a 30 s window longer than the
+    recording, and numpy's 'same' convolution then returned the window's length (a ValueError, a traceback)."""
+    session = load_session(DATA / "broad-02.parquet").within(start_s - 0.5, start_s + seconds)
+    with pytest.raises(ObservabilityError) as refused:
+        magyro.calibrate(session, magyro.Options(accelerometer=True))
+    assert "mirror image" not in str(refused.value) and "converge" not in str(refused.value)
+
+
 def test_a_magnetometer_that_does_not_follow_a_turning_gyro_is_an_input_error():
     """The real trial's gyro, and a 'magnetometer' that only carries its own noise: no magnetometer at all."""
     real = load_session(DATA / "broad-02.parquet")

@@ -71,7 +71,8 @@ def repair_recording(session: Session, repairs: Repairs | None = None) -> tuple[
         fixed |= {("clock_drift", "both"), ("time_offset", "both")}
     t_g, t_m = times["gyro"][keep["gyro"]], times["magnetometer"][keep["magnetometer"]]
     repaired = replace(session, t_gyro_s=t_g.copy(), gyro_rad_s=values["gyro"][keep["gyro"]].copy(),
-                       t_mag_s=t_m.copy(), mag=values["magnetometer"][keep["magnetometer"]].copy())
+                       t_mag_s=t_m.copy(), mag=values["magnetometer"][keep["magnetometer"]].copy(),
+                       t_acc_s=accelerometer_times(session, times["gyro"], ("bursts", "gyro") in fixed))
     cut = evidence.saturated if ("saturation", "gyro") in fixed else np.zeros(len(keep["gyro"]), dtype=bool)
     holes = gyro_holes(times["gyro"], keep["gyro"], cut)
     findings = [replace(f, repaired=True) if (f.kind, f.sensor) in fixed else truthful(f, repairs) for f in check.findings]
@@ -79,6 +80,17 @@ def repair_recording(session: Session, repairs: Repairs | None = None) -> tuple[
         findings.append(holes_finding(holes))
     return repaired, replace(check, findings=tuple(findings), gyro_holes_s=tuple(holes),
                              repairs={name: bool(on) for name, on in repairs.__dict__.items()})
+
+
+def accelerometer_times(session: Session, t_gyro_s: np.ndarray, gyro_restamped: bool) -> np.ndarray | None:
+    """The accelerometer's stamps: the gyro's restamped ones when it shares the gyro's rows (one IMU read and
+    stamped together, as the gyro's bursts were), else its own as recorded. Left on the bursts, a restamped gyro's
+    accelerometer lagged it by up to a burst (0.25 s on BROAD 02 stamped in bursts) and its calibration came out
+    past the refusal bound."""
+    t_a = session.t_acc_s
+    if gyro_restamped and t_a is not None and np.array_equal(t_a, session.t_gyro_s):
+        return t_gyro_s.copy()
+    return t_a
 
 
 def truthful(finding: Finding, repairs: Repairs) -> Finding:

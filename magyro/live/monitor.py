@@ -27,7 +27,7 @@ The fast part, on every `update()` (several times a second), costs O(1) per new 
   mean reading length before a fit.
 - **noise levels**: white-noise stds from robust third differences (`front.noise.white_noise_std`)
   of the last `NOISE_WINDOW` samples, refreshed with the fit.
-- **coverage**: the equal-area sphere cells of the field directions (`excitation.sphere_cell`),
+- **coverage**: the equal-area sphere cells of the field directions (`observability.report.sphere_cell`),
   marked as readings arrive and recounted when the fit changes.
 
 The slow part, the predicted one-sigma of every gyro parameter, is `magyro observe`'s own
@@ -299,7 +299,7 @@ class ExcitationMonitor:
         return self.mag_std / rho
 
     def _mark_cells(self) -> None:
-        from magyro.observability.excitation import sphere_cell
+        from magyro.observability.report import sphere_cell
 
         if self._A is None or self._cells_done >= self.mag.n:
             return

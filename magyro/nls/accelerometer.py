@@ -231,8 +231,9 @@ def lever_acceleration(grid: Grid, K: np.ndarray, eps: np.ndarray, lever_m: np.n
 
 
 def local_mean_square(x: np.ndarray, used: np.ndarray, window: int) -> np.ndarray:
-    """(n,) the mean of x^2 (n,) over `window` intervals about each, counting the used ones only."""
-    kernel = np.ones(window)
+    """(n,) the mean of x^2 (n,) over `window` intervals about each (all n when the record is shorter), counting the
+    used ones only."""
+    kernel = np.ones(max(1, min(window, len(x))))
     return np.convolve(np.where(used, x**2, 0.0), kernel, "same") / np.maximum(
         np.convolve(used.astype(float), kernel, "same"), 1.0)
 

@@ -99,9 +99,11 @@ def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.nda
     r = residual_matrix(problem, sol.x, sol.p) if sol.residuals is None else sol.residuals
     excess = specific_force_excess(start, A, b.ravel(), K, eps.ravel(), lever.ravel())
     hand = hand_motion(excess, sol.acc_weight, start, solved_accelerometer_residuals(problem, r, sol.acc_weight))
-    weights_hand = np.sqrt(np.maximum(1.0 / np.maximum(sol.acc_weight, 1e-300) ** 2 - white_variance(start), 0.0))
+    used = sol.acc_weight > 0    # an interval with no accelerometer sample has weight 0: no hand counted there
+    held = np.divide(1.0, sol.acc_weight**2, out=np.zeros_like(sol.acc_weight), where=used) - white_variance(start)
+    weights_hand = np.where(used, np.sqrt(np.maximum(held, 0.0)), 0.0)
     return hand_covariance_term(problem, sol.x, sol.p, reduced, reduced.information, hand.hand_std_m_s2,
-                                weights_hand * (sol.acc_weight > 0), hand.correlation)
+                                weights_hand, hand.correlation)
 
 
 def not_converged_message(sol, decrement: float) -> str:

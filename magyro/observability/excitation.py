@@ -38,7 +38,7 @@ from magyro.observability.gate import (WELL_CONDITIONED, accuracy_shortfalls, ac
                                        directional_rank)
 from magyro.observability.gravity import observe_accelerometer
 from magyro.observability.matrix import cumulative_information, trapezoid_weights
-from magyro.observability.report import (SPHERE_BANDS, SPHERE_SECTORS, Coverage, ObservabilityReport, Targets,
+from magyro.observability.report import (SPHERE_BANDS, SPHERE_SECTORS, sphere_cell, unit_rows, Coverage, ObservabilityReport, Targets,
                                          Timeline, accuracy_rows, fmt)
 from magyro.options import Options, StdBounds
 from magyro.result.parts import Std
@@ -107,7 +107,7 @@ def observe(session: Session, options: Options | None = None, targets: Targets |
                "mag_std": levels.mag_std, "mag_sample_std": levels.mag_sample_std, "source": levels.source},
         analysed_span_s=[float(s.t_gyro_s[0]), float(s.t_gyro_s[-1])],
         rests_s=[[float(a), float(b)] for a, b in found.segments_s],
-        mag_unit=session.mag_unit, t_mag_s=s.t_mag_s, field_directions=_unit(field_m),
+        mag_unit=session.mag_unit, t_mag_s=s.t_mag_s, field_directions=unit_rows(field_m),
         t_gyro_s=s.t_gyro_s, rates_deg_s=np.rad2deg(rates), accelerometer=accelerometer,
     )
 
@@ -178,15 +178,6 @@ def bias_free_rates(session: Session, prep: Prepared | None, analysis: Observabi
             if plausible_gyro(Kg):
                 return y @ Kg.T + C.T @ lin.eps, "corrected by the initial estimate of K_g and bias"
     return y - np.median(y, axis=0), "readings minus their median (taken as the bias)"
-
-
-def sphere_cell(directions: np.ndarray, bands: int = SPHERE_BANDS, sectors: int = SPHERE_SECTORS) -> np.ndarray:
-    """Index of the equal-area cell of each unit vector (N, 3): band of equal height in z, sector of longitude."""
-    u = _unit(directions)
-    band = np.clip(np.floor((u[:, 2] + 1.0) / 2.0 * bands), 0, bands - 1).astype(int)
-    lon = np.arctan2(u[:, 1], u[:, 0])
-    sector = np.clip(np.floor((lon + np.pi) / (2 * np.pi) * sectors), 0, sectors - 1).astype(int)
-    return band * sectors + sector
 
 
 def coverage(t_gyro_s, rates_rad_s, field_m, rate_reference: str) -> Coverage:
@@ -265,9 +256,3 @@ def judge(analysis: ObservabilityAnalysis, ellipsoid_problem: str | None, std: S
 
 
 # --------------------------------------------------------------------------- helpers
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    v = np.asarray(v, dtype=float)
-    n = np.linalg.norm(v, axis=1, keepdims=True)
-    return v / np.where(n > 0, n, 1.0)

@@ -363,8 +363,7 @@ def observe_accelerometer(full_session, moving_session, field_m, analysis, rates
 
     Part 1 uses every accelerometer sample of `full_session` (the rests are its best poses); part 2 the span the
     gate analyses (`moving_session`), beside the field's integral."""
-    from magyro.observability.excitation import sphere_cell
-    from magyro.observability.report import SPHERE_BANDS, SPHERE_SECTORS
+    from magyro.observability.report import SPHERE_BANDS, SPHERE_SECTORS, sphere_cell
 
     ta, acc = _finite(full_session.t_acc_s, full_session.acc_m_s2)
     if ta is None:

@@ -12,7 +12,7 @@ import numpy as np
 
 from magyro.errors import InputError
 from magyro.io import write_atomically
-from magyro.observability.excitation import sphere_cell
+from magyro.observability.report import sphere_cell
 from magyro.observability.gate import AXES, FLOOR_FACTOR
 from magyro.observability.report import SPHERE_BANDS, SPHERE_SECTORS, ObservabilityReport, fmt
 

@@ -31,6 +31,22 @@ SPHERE_GRID = (f"{SPHERE_BANDS * SPHERE_SECTORS} equal-area cells: {SPHERE_BANDS
 UPPER_OFF_DIAGONAL = ((0, 1), (0, 2), (1, 2))
 
 
+def sphere_cell(directions: np.ndarray, bands: int = SPHERE_BANDS, sectors: int = SPHERE_SECTORS) -> np.ndarray:
+    """Index of the equal-area cell of each unit vector (N, 3): band of equal height in z, sector of longitude."""
+    u = unit_rows(directions)
+    band = np.clip(np.floor((u[:, 2] + 1.0) / 2.0 * bands), 0, bands - 1).astype(int)
+    lon = np.arctan2(u[:, 1], u[:, 0])
+    sector = np.clip(np.floor((lon + np.pi) / (2 * np.pi) * sectors), 0, sectors - 1).astype(int)
+    return band * sectors + sector
+
+
+def unit_rows(v: np.ndarray) -> np.ndarray:
+    """The rows of v (N, 3) scaled to unit length (zero rows stay zero)."""
+    v = np.asarray(v, dtype=float)
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
 @dataclass
 class Timeline:
     """The cumulative integral of M^T M at checkpoints through the session."""
@@ -49,7 +65,7 @@ class Coverage:
     angle_turned_deg: np.ndarray    # (3,) integral of |w_i| dt per gyro axis
     peak_rate_deg_s: np.ndarray     # (3,) max |w_i|
     rate_reference: str             # how the bias was taken out of the rates
-    cells_visited: int              # of the equal-area grid SPHERE_GRID (`excitation.sphere_cell`)
+    cells_visited: int              # of the equal-area grid SPHERE_GRID (`sphere_cell`)
     cells: int
 
     @property
