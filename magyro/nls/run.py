@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from magyro.errors import ObservabilityError, SolverError
+from magyro.errors import AccelerometerRefused, ObservabilityError, SolverError
 from magyro.result.parts import solver_outcome
 from magyro.front import noise
 from magyro.front.prepare import Prepared, prepare
@@ -193,8 +193,8 @@ def accelerometer_gate(cal: Calibration, options: Options) -> list[str]:
                 "about its own middle, with a few seconds still between turns")
     if options.force:
         return [f"solved with --force although {summary}"]
-    raise ObservabilityError(f"{summary} (--force reports it anyway; without --accelerometer the gyro and the "
-                             f"magnetometer are calibrated alone)")
+    raise AccelerometerRefused(f"{summary} (--force reports it anyway; with --no-accelerometer the gyro and the "
+                               f"magnetometer are calibrated alone)")
 
 
 def gate_checked(prep: Prepared) -> bool:
