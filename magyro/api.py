@@ -71,9 +71,11 @@ def calibrate_with_history(session: Session, options: Options | None = None, met
 def solved_with_history(method, session: Session, options: Options, accelerometer_by_default: bool):
     """(Calibration, history or None) of the method. With `accelerometer_by_default` (the session has one and the
     options left it to magyro) the accelerometer joins the solve, and when it cannot be calibrated (its std past the
-    refusal bound, or no solution with it) the gyro and the magnetometer are calibrated alone, saying why."""
+    refusal bound, a hand too big for gravity to be read, or no solution with it; with --force too) the gyro and the
+    magnetometer are calibrated alone, saying why."""
     from magyro.errors import AccelerometerRefused, SolverError, one_line
     from magyro.methods import run_method
+    from magyro.nls.run import accelerometer_gate
 
     def run(opts):
         if hasattr(method, "calibrate_with_history"):
@@ -83,7 +85,10 @@ def solved_with_history(method, session: Session, options: Options, acceleromete
     if not accelerometer_by_default:
         return run(options)
     try:
-        return run(replace(options, accelerometer=True))
+        cal, history = run(replace(options, accelerometer=True))
+        if options.force:   # --force lets the gyro through; an accelerometer nobody asked for is left out as without it
+            accelerometer_gate(cal, replace(options, force=False))
+        return cal, history
     except (AccelerometerRefused, SolverError) as refused:
         cal, history = run(replace(options, accelerometer=False))
         cal.warnings.insert(0, f"accelerometer left out: {one_line(refused, None)} (--accelerometer insists: exit "

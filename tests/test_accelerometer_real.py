@@ -96,12 +96,17 @@ def test_beside_a_magnet_gravity_rescues_the_gyros_dead_reckoning():
     if not found:
         pytest.skip("BROAD trial 30 absent")
     session = import_broad_movement(found[0], 10.0)
-    rms = {}
-    for name, options in {"without": Options(), "with": Options(accelerometer=True, force=True)}.items():
-        summary = validate(session, calibrate(session, options)).to_dict()["summary"]
+    rms, cals = {}, {}
+    for name, options in {"without": Options(accelerometer=False), "with": Options(accelerometer=True, force=True),
+                          "default": Options()}.items():
+        cals[name] = calibrate(session, options)
+        summary = validate(session, cals[name]).to_dict()["summary"]
         rms["raw"], rms[name] = summary["raw"]["rms_deg"], summary["calibrated"]["rms_deg"]
     assert rms["without"] > 0.8 * rms["raw"], rms
     assert rms["with"] < 0.4 * rms["without"], rms
+    # by default the accelerometer is left out here, saying why: the hand carried the device about (2.2 m/s^2)
+    assert cals["default"].accelerometer is None and rms["default"] == rms["without"]
+    assert cals["default"].warnings[0].startswith("accelerometer left out: the hand accelerated the device by 2.")
 
 
 @pytest.mark.broad

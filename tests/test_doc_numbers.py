@@ -239,7 +239,7 @@ def test_the_std_record_is_what_trial_02_gives_now():
     import magyro
 
     session = bench.import_broad_movement(sorted(BROAD.glob("02_*.mat"))[0], bench.MARGIN_S)
-    cal = magyro.calibrate(session, magyro.Options())
+    cal = magyro.calibrate(session, bench.GYRO_ALONE)
     recorded = blocks_module.read_record(real_data.STD_RECORD)["trials"]["02"]
     assert 100 * cal.noise.field_disturbance.std_fraction == pytest.approx(recorded["disturbance_percent"], rel=1e-3)
     assert bench.split_rms_z(session, cal) == pytest.approx(

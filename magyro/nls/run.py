@@ -76,8 +76,9 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     cal = assemble(problem, prep, grid, sol, reduced, method, time.perf_counter() - t_start, cov_theta, disturbance)
     if hand is not None:
         cal.accelerometer.hand_rms_m_s2 = float(np.sqrt(hand.variance_m2_s4))
+    acc_warnings = accelerometer_gate(cal, options)   # first: an accelerometer past its bound widens the gyro's std
     cal.warnings.extend(gate_warnings or solved_accuracy_gate(cal, options))
-    cal.warnings.extend(accelerometer_gate(cal, options))
+    cal.warnings.extend(acc_warnings)
     if method.trajectory:
         cal.trajectory = attitude_trajectory(problem, grid, lin, sol.x, reduced, prep.session, cal.R, cal.h, cov_theta)
     return cal
