@@ -19,8 +19,12 @@ docs/accelerometer.md is rendered from (docs/make_accelerometer_numbers.py).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # as the CLI has it (magyro/cli/__init__.py): MUMPS's BLAS
+os.environ.setdefault("OMP_NUM_THREADS", "1")        # threads cost the accelerometer's solve 1.5 s of spinning
 from concurrent.futures import ProcessPoolExecutor
 from types import SimpleNamespace
 

@@ -53,8 +53,10 @@ def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, re
     weights[0] = 1.0
     if size % 2 == 0:
         weights[-1] = 1.0
-    omega = np.einsum("f,fac,fbc->ab", S * weights, F, F.conj()).real / size
-    omega -= np.einsum("nac,nbc->ab", counted, counted)           # what I counts as independent
+    G = (F * np.sqrt(np.maximum(S * weights, 0.0) / size)[:, None, None]).transpose(0, 2, 1).reshape(-1, F.shape[1])
+    omega = (G.T @ G.conj()).real                                 # sum over f and axes of S F F^H / N: one product
+    held = counted.transpose(0, 2, 1).reshape(-1, counted.shape[1])
+    omega -= held.T @ held                                        # what I counts as independent
     total = information + omega                                   # J^T W (white + hand) W J: positive semi-definite,
     value, vector = np.linalg.eigh(total)                         # but for rounding (the weights may count more hand
     total = (vector * np.maximum(value, 0.0)) @ vector.T          # than measured: then the std is below I^-1)
