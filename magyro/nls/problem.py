@@ -208,8 +208,8 @@ class JointProblem:
 
     def solve(self, solver, x0: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, dict]:
         """(the solution, IPOPT's stats): IPOPT from x0 with the parameters p, which the callbacks of the NLP read
-        from numpy (the NLP has no parameter: no DM or work copy of p); the last Gauss-Newton Hessian IPOPT
-        evaluated is kept (`last_hessian`)."""
+        from numpy (the NLP has no parameter: no DM or work copy of p); the point of the last Gauss-Newton Hessian
+        IPOPT evaluated is kept (`last_hessian_point`)."""
         self.solver()
         p = np.ascontiguousarray(p, dtype=float)
         self._kept.start(p)
@@ -225,19 +225,19 @@ class JointProblem:
         try:
             run()
         finally:
-            self._kept.stop()
             self._objective.p = self._gradient.p = None
         return x, dict(buffer.stats())
 
     def release_solver(self) -> None:
         """Give IPOPT's memory back (its matrices and MUMPS's factors stay with the solver until it goes: 120 MB at
-        360k samples); the last Hessian stays (`last_hessian`), and `solver` builds a new one when asked."""
+        360k samples); the last Hessian's point stays (`last_hessian_point`), and `solver` builds a new one when
+        asked."""
         self._solver = self._objective = self._gradient = None
         give_back()
 
-    def last_hessian(self, p: np.ndarray):
-        """(x, the nonzeros of triu(J^T J) at x) of the last iteration of the last `solve` with these parameters p,
-        or None."""
+    def last_hessian_point(self, p: np.ndarray) -> np.ndarray | None:
+        """The x of the last Gauss-Newton Hessian IPOPT evaluated in the last `solve` with these parameters p, or
+        None (no iteration)."""
         kept = getattr(self, "_kept", None)
         return kept.last if kept is not None and kept.p is p else None
 
