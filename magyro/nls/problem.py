@@ -320,6 +320,7 @@ class JointProblem:
         out = np.zeros(self.n_p)
         out[self.global_positions] = gvec
         data = out[self.n_lead * self.n_data :].reshape(n_int, self.n_data)
+        dt, ya, yb = g_.sub_steps()
         columns = {
             "Cbar": lambda: C[:-1].transpose(0, 2, 1).reshape(n_int, 9),  # column-major vec of each C
             "qD": lambda: so3.dcm_to_quat(np.einsum("kji,kjl->kil", C[:-1], C[1:])),
@@ -328,9 +329,9 @@ class JointProblem:
             "ymag": lambda: np.asarray(y_mag)[g_.mag_index].reshape(n_int, 3 * s),
             "wseg": lambda: g_.mag_weight.reshape(n_int, s),
             "ymid": lambda: gyro_at_mag_midpoints(g_, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s).reshape(n_int, 3 * s),
-            "dt": lambda: g_.dt_s.reshape(n_int, s * L),
-            "ya": lambda: g_.gyro_a.reshape(n_int, 3 * s * L),
-            "yb": lambda: g_.gyro_b.reshape(n_int, 3 * s * L),
+            "dt": lambda: dt.reshape(n_int, s * L),
+            "ya": lambda: ya.reshape(n_int, 3 * s * L),
+            "yb": lambda: yb.reshape(n_int, 3 * s * L),
         }
         if self.walk:   # eta is in field_scale units
             columns["w_walk"] = lambda: (lin.field_scale / (self.walk_density * np.sqrt(g_.interval_s)))[:, None]
