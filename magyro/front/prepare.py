@@ -35,12 +35,18 @@ class Prepared:
     sigma_mag: float
     gyro_density: float
     fit: ellipsoid.EllipsoidFit
-    field_m: np.ndarray
     analysis: ObservabilityAnalysis
     rests: rests.Rests | None = None
     noise_source: str = ""
     levels: NoiseLevels | None = None   # where each level came from (given, rest, guess)
     untrimmed: Session | None = None    # the session before its end rests were trimmed (the accelerometer's rests)
+
+    @property
+    def field_m(self) -> np.ndarray:
+        """The calibrated field R (y - h) of every magnetometer sample of `session`, made when asked: not kept, so
+        the linearisation's use of it does not last through the solve (8 MB at 360k samples, all of it resident at
+        IPOPT's high-water mark)."""
+        return ellipsoid.calibrated_field(self.fit.R, self.fit.h, self.session.mag)
 
 
 def attitude_span_deg(session: Session, bias_rad_s: np.ndarray | None = None) -> float:
@@ -178,4 +184,4 @@ def prepare(session: Session, options: Options) -> Prepared:
         raise ObservabilityError(
             f"the motion does not excite every gyro parameter: {analysis.summary()} (--force solves anyway)", analysis
         )
-    return Prepared(session, sigma_mag, density, fit, field, analysis, found, levels.source, levels, untrimmed)
+    return Prepared(session, sigma_mag, density, fit, analysis, found, levels.source, levels, untrimmed)

@@ -315,9 +315,10 @@ def specific_force_excess(start: AccelerometerStart, A: np.ndarray, b: np.ndarra
 def lever_acceleration(grid: Grid, K: np.ndarray, eps: np.ndarray, lever_m: np.ndarray) -> np.ndarray:
     """(n_int, stride, 3) alpha x r + w x (w x r) at every segment start, as the kernel has it: w the calibrated rate
     there, alpha the segment's mean angular acceleration."""
-    wa = grid.gyro_a @ K.T + eps                                   # (n_int, stride, L, 3)
-    wb = grid.gyro_b @ K.T + eps
-    seg_s = grid.dt_s.sum(axis=2)
+    dt, ya, yb = grid.sub_steps()
+    wa = ya @ K.T + eps                                            # (n_int, stride, L, 3)
+    wb = yb @ K.T + eps
+    seg_s = dt.sum(axis=2)
     alpha = (wb - wa).sum(axis=2) / np.where(seg_s > 0, seg_s, 1.0)[..., None]
     w = wa[:, :, 0]
     r = np.broadcast_to(lever_m, w.shape)

@@ -26,17 +26,21 @@ class Grid:
     Interval n (node n to n+1) holds `stride` segments, each cut into at
     most `substeps` sub-steps (padded with zero length; one, with the
     boundaries of `segment_starts`). A segment that starts at no
-    magnetometer sample has weight 0.
+    magnetometer sample has weight 0. The sub-steps' lengths and gyro rates
+    (`sub_steps`) are made from the gyro record when asked, not kept: the
+    problem's parameter vector holds them (19 MB at 360k samples, resident
+    beside it through the solve when they were kept here too).
     """
 
     t_node_s: np.ndarray         # (N,)
     mag_index: np.ndarray        # (N-1, stride) magnetometer sample at each segment start (the one before, if none)
-    dt_s: np.ndarray             # (N-1, stride, L)
-    gyro_a: np.ndarray           # (N-1, stride, L, 3) gyro at each sub-step start (`high_order_samples`)
-    gyro_b: np.ndarray           # (N-1, stride, L, 3) gyro at each sub-step end
     last_mag_index: int          # magnetometer sample at the last node
     mag_weight: np.ndarray       # (N-1, stride) 1 where a segment starts at a sample, 0 in a gap
     gyro_linked: np.ndarray      # (N-1,) False where the interval overlaps a hole in the gyro record
+    t_segment_s: np.ndarray      # ((N-1) stride + 1,) the segment boundaries, nodes on every stride-th
+    substeps: int                # sub-steps per segment at most (L)
+    t_gyro_s: np.ndarray         # the gyro record the sub-steps are made from (the session's arrays, not copies)
+    gyro_rad_s: np.ndarray
     last_on_sample: bool = True  # whether the last node sits on a magnetometer sample
 
     @property
@@ -45,11 +49,37 @@ class Grid:
 
     @property
     def stride(self) -> int:
-        return self.dt_s.shape[1]
+        return self.mag_index.shape[1]
+
+    def sub_steps(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(dt_s (N-1, stride, L), gyro_a, gyro_b (N-1, stride, L, 3)): each sub-step's length and the gyro at its
+        start and end (`high_order_samples`, interpolated; zero inside a hole of the gyro record)."""
+        t_all, seg_of_step, pos = step_layout(self.t_gyro_s, self.t_segment_s)
+        y_all = np.column_stack([np.interp(t_all, self.t_gyro_s, f) for f in
+                                 high_order_samples(self.t_gyro_s, self.gyro_rad_s).T])
+        interval, segment = np.divmod(seg_of_step, self.stride)
+        shape = (len(self.mag_index), self.stride, self.substeps)
+        dt, ya, yb = np.zeros(shape), np.zeros(shape + (3,)), np.zeros(shape + (3,))
+        dt[interval, segment, pos] = np.diff(t_all)
+        measured = ~overlaps_a_hole(t_all[:-1], t_all[1:], hole_spans_s(self.t_gyro_s))[:, None]   # no rate is known inside a hole
+        ya[interval, segment, pos] = y_all[:-1] * measured
+        yb[interval, segment, pos] = y_all[1:] * measured
+        return dt, ya, yb
 
     @property
-    def substeps(self) -> int:
-        return self.dt_s.shape[2]
+    def dt_s(self) -> np.ndarray:
+        """(N-1, stride, L) the sub-steps' lengths (`sub_steps`, made on each use)."""
+        return self.sub_steps()[0]
+
+    @property
+    def gyro_a(self) -> np.ndarray:
+        """(N-1, stride, L, 3) the gyro at each sub-step start (`sub_steps`, made on each use)."""
+        return self.sub_steps()[1]
+
+    @property
+    def gyro_b(self) -> np.ndarray:
+        """(N-1, stride, L, 3) the gyro at each sub-step end (`sub_steps`, made on each use)."""
+        return self.sub_steps()[2]
 
     @property
     def interval_s(self) -> np.ndarray:
@@ -127,6 +157,16 @@ def typical_segment_s(t_gyro_s, t_mag_s) -> float | None:
     return float(np.median(np.diff(segment_starts(t_mag_s, usable, t_gyro_s)[0])))
 
 
+def step_layout(t_gyro_s: np.ndarray, t_seg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(the sub-steps' boundaries: every gyro time between the segment boundaries t_seg and those, each sub-step's
+    segment, its position in the segment)."""
+    inside = t_gyro_s[(t_gyro_s > t_seg[0]) & (t_gyro_s < t_seg[-1])]
+    t_all = np.union1d(inside, t_seg)
+    seg_of_step = np.searchsorted(t_seg, t_all[:-1], side="right") - 1
+    first = np.searchsorted(seg_of_step, np.arange(len(t_seg) - 1), side="left")
+    return t_all, seg_of_step, np.arange(len(t_all) - 1) - first[seg_of_step]
+
+
 def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
     """Nodes on every `stride`-th segment boundary (`segment_starts`: magnetometer samples and gyro times)
     inside the gyro's span."""
@@ -136,28 +176,13 @@ def build_grid(t_gyro_s, gyro_rad_s, t_mag_s, stride: int = 1) -> Grid:
     n_int = (len(t_bound) - 1) // stride
     t_seg = t_bound[: n_int * stride + 1]
     seg_idx = idx_bound[: n_int * stride + 1]
-    inside = t_gyro_s[(t_gyro_s > t_seg[0]) & (t_gyro_s < t_seg[-1])]
-    t_all = np.union1d(inside, t_seg)
-    filtered = high_order_samples(t_gyro_s, gyro_rad_s)   # the trapezoid below then of high order
-    y_all = np.column_stack([np.interp(t_all, t_gyro_s, filtered[:, i]) for i in range(3)])
-    seg_of_step = np.searchsorted(t_seg, t_all[:-1], side="right") - 1
-    first = np.searchsorted(seg_of_step, np.arange(len(t_seg) - 1), side="left")
-    pos = np.arange(len(t_all) - 1) - first[seg_of_step]
-    L = int(pos.max()) + 1
-    interval, segment = np.divmod(seg_of_step, stride)
-    dt = np.zeros((n_int, stride, L))
-    ya = np.zeros((n_int, stride, L, 3))
-    yb = np.zeros((n_int, stride, L, 3))
-    dt[interval, segment, pos] = np.diff(t_all)
-    measured = ~overlaps_a_hole(t_all[:-1], t_all[1:], holes)[:, None]   # no rate is known inside a hole
-    ya[interval, segment, pos] = y_all[:-1] * measured
-    yb[interval, segment, pos] = y_all[1:] * measured
+    L = int(step_layout(t_gyro_s, t_seg)[2].max()) + 1
     weight = on_sample[: n_int * stride].reshape(n_int, stride).astype(float)
     t_node = t_seg[::stride]
     linked = ~overlaps_a_hole(t_node[:-1], t_node[1:], holes)
     weight[~linked, 1:] = 0.0   # past a node, an interval over a hole cannot say where the device turned
-    return Grid(t_node, seg_idx[:-1].reshape(n_int, stride), dt, ya, yb, int(seg_idx[-1]), weight, linked,
-                bool(on_sample[n_int * stride]))
+    return Grid(t_node, seg_idx[:-1].reshape(n_int, stride), int(seg_idx[-1]), weight, linked, t_seg, L,
+                t_gyro_s, gyro_rad_s, bool(on_sample[n_int * stride]))
 
 def gyro_at_mag_midpoints(grid: Grid, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s: float) -> np.ndarray:
     """Raw gyro at each used magnetometer stamp minus tau0/2: (N-1, stride, 3)."""

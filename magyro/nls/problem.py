@@ -208,8 +208,8 @@ class JointProblem:
 
     def solve(self, solver, x0: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, dict]:
         """(the solution, IPOPT's stats): IPOPT from x0 with the parameters p, which the callbacks of the NLP read
-        from numpy (the NLP has no parameter: no DM or work copy of p); the last Gauss-Newton Hessian IPOPT
-        evaluated is kept (`last_hessian`)."""
+        from numpy (the NLP has no parameter: no DM or work copy of p); the point of the last Gauss-Newton Hessian
+        IPOPT evaluated is kept (`last_hessian_point`)."""
         self.solver()
         p = np.ascontiguousarray(p, dtype=float)
         self._kept.start(p)
@@ -225,19 +225,19 @@ class JointProblem:
         try:
             run()
         finally:
-            self._kept.stop()
             self._objective.p = self._gradient.p = None
         return x, dict(buffer.stats())
 
     def release_solver(self) -> None:
         """Give IPOPT's memory back (its matrices and MUMPS's factors stay with the solver until it goes: 120 MB at
-        360k samples); the last Hessian stays (`last_hessian`), and `solver` builds a new one when asked."""
+        360k samples); the last Hessian's point stays (`last_hessian_point`), and `solver` builds a new one when
+        asked."""
         self._solver = self._objective = self._gradient = None
         give_back()
 
-    def last_hessian(self, p: np.ndarray):
-        """(x, the nonzeros of triu(J^T J) at x) of the last iteration of the last `solve` with these parameters p,
-        or None."""
+    def last_hessian_point(self, p: np.ndarray) -> np.ndarray | None:
+        """The x of the last Gauss-Newton Hessian IPOPT evaluated in the last `solve` with these parameters p, or
+        None (no iteration)."""
         kept = getattr(self, "_kept", None)
         return kept.last if kept is not None and kept.p is p else None
 
@@ -320,6 +320,7 @@ class JointProblem:
         out = np.zeros(self.n_p)
         out[self.global_positions] = gvec
         data = out[self.n_lead * self.n_data :].reshape(n_int, self.n_data)
+        dt, ya, yb = g_.sub_steps()
         columns = {
             "Cbar": lambda: C[:-1].transpose(0, 2, 1).reshape(n_int, 9),  # column-major vec of each C
             "qD": lambda: so3.dcm_to_quat(np.einsum("kji,kjl->kil", C[:-1], C[1:])),
@@ -328,9 +329,9 @@ class JointProblem:
             "ymag": lambda: np.asarray(y_mag)[g_.mag_index].reshape(n_int, 3 * s),
             "wseg": lambda: g_.mag_weight.reshape(n_int, s),
             "ymid": lambda: gyro_at_mag_midpoints(g_, t_gyro_s, gyro_rad_s, t_mag_s, tau0_s).reshape(n_int, 3 * s),
-            "dt": lambda: g_.dt_s.reshape(n_int, s * L),
-            "ya": lambda: g_.gyro_a.reshape(n_int, 3 * s * L),
-            "yb": lambda: g_.gyro_b.reshape(n_int, 3 * s * L),
+            "dt": lambda: dt.reshape(n_int, s * L),
+            "ya": lambda: ya.reshape(n_int, 3 * s * L),
+            "yb": lambda: yb.reshape(n_int, 3 * s * L),
         }
         if self.walk:   # eta is in field_scale units
             columns["w_walk"] = lambda: (lin.field_scale / (self.walk_density * np.sqrt(g_.interval_s)))[:, None]

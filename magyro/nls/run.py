@@ -85,12 +85,13 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
 
 
 def solved_hessian(problem: JointProblem, sol):
-    """triu(J^T J) for the std: the one IPOPT evaluated at its last iteration, else (no iteration in the last pass)
-    evaluated at the solution. At convergence the two points differ by a step too small to matter: the
+    """triu(J^T J) for the std: at the point of the Gauss-Newton Hessian IPOPT evaluated last, else (no iteration
+    in the last pass) at the solution. At convergence the two points differ by a step too small to matter: the
     estimates are those of the solution either way, and the std moved by < 1e-6 of itself where compared
-    (benchmarks/same_estimates.py on BROAD 02, paper-table1 and the bench_limit sessions)."""
-    kept = problem.last_hessian(sol.p)
-    return kept[1] if kept is not None else problem.hessian_values(sol.x, sol.p)
+    (benchmarks/same_estimates.py on BROAD 02, paper-table1 and the bench_limit sessions). Evaluated here, after
+    IPOPT gave its memory back, rather than kept from the solve (`on_numpy.KeptHessian`)."""
+    x = problem.last_hessian_point(sol.p)
+    return problem.hessian_values(sol.x if x is None else x, sol.p)
 
 
 def solved_hand_motion(problem: JointProblem, lin: Linearisation, sol) -> HandMotion:

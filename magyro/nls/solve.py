@@ -126,16 +126,16 @@ def default_stride(session: Session) -> int:
 
 def linearise(prep: Prepared, grid: Grid, options: Options, search_lag: bool = True) -> Linearisation:
     """The point the corrections are taken about: ellipsoid, eq. (13) gyro estimate, nominal attitude, field."""
-    s = prep.session
+    s, field_m = prep.session, prep.field_m
     unexcited = unexcited_directions(prep.analysis)   # forced past the gate: an ideal gyro where nothing is seen
     if options.estimate_time_offset and search_lag and unexcited is None:
-        lin0 = with_time_offset(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, prep.field_m)
+        lin0 = with_time_offset(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, field_m)
     else:
-        lin0 = linear_gyro_estimate(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, prep.field_m, time_offset_s=options.time_offset_s,
+        lin0 = linear_gyro_estimate(s.t_gyro_s, s.gyro_rad_s, s.t_mag_s, field_m, time_offset_s=options.time_offset_s,
                                     unexcited=unexcited)
     check_axis_mapping(lin0.K, prep)  # a mirrored gyro shows already in the linear estimate: say so before solving
     C_nodes, stretch, in_hole = nominal_attitudes(s, lin0.K, lin0.eps, grid.t_node_s)
-    C, m0 = aligned_stretches(C_nodes, stretch, in_hole, prep.field_m[grid.node_mag_index], grid.node_on_sample,
+    C, m0 = aligned_stretches(C_nodes, stretch, in_hole, field_m[grid.node_mag_index], grid.node_on_sample,
                               grid.t_node_s)
     S0 = np.linalg.inv(prep.fit.R)
     acc = None
