@@ -35,13 +35,13 @@ import numpy as np
 from magyro import so3
 from magyro.front.differences import white_noise_std
 from magyro.nls.grid import Grid
+from magyro.result.accelerometer import HAND_LIMIT_OF_G
 from magyro.result.reported import qr_split
 from magyro.session import HOLE_FACTOR
 
 HAND_WINDOW_S = 1.0          # the weights: the hand's acceleration variance is measured over this window
 HAND_MAX_LAG_S = 30.0        # its autocorrelation is measured up to this lag (a hand's slowest sway)
 HAND_SIZE_WINDOW_S = 30.0    # the std: its variance is measured over as long (`hand_motion`)
-HAND_LIMIT_OF_G = 0.07       # the hand's RMS acceleration while turning above which gravity is not read (`hand_too_big`)
 HAND_REACH_M = 0.5           # the device's position stays within this std (m) of where it is turned (`reach_cap`)
 
 

@@ -14,6 +14,7 @@ from magyro.errors import InputError
 from magyro.result.parts import as_list, read_array, read_number
 
 UPPER = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+HAND_LIMIT_OF_G = 0.07   # the hand's RMS acceleration while turning above which gravity is not read (nls `hand_too_big`)
 
 
 @dataclass
@@ -97,5 +98,8 @@ class AccelerometerCalibration:
         if self.lever_arm_m is not None:
             lines.append("turned about a point, lever arm (cm, magnetometer frame)  " + "  ".join(
                 f"{100 * self.lever_arm_m[i]:+.1f} +/- {100 * self.std_lever_arm_m[i]:.1f}" for i in range(3)))
+        if self.hand_rms_m_s2 is not None:
+            lines.append(f"the hand accelerated the device by {self.hand_rms_m_s2:.2f} m/s^2 RMS while turning "
+                         f"(refused above {100 * HAND_LIMIT_OF_G:g} % of g, {HAND_LIMIT_OF_G * self.g_m_s2:.2f})")
         lines.append(f"gravity {self.g_m_s2:.5f} m/s^2 (given)")
         return lines
