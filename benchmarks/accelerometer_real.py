@@ -172,14 +172,14 @@ def run(r: dict) -> dict:
     if session.acc_m_s2 is not None:
         row["acc_findings"] = accelerometer_findings(session)
         row["raw_rests"] = at_rests(session, None, Options().gravity_m_s2)   # the import's unit, whatever the solve
-    without = solve(session, Options())
+    without = solve(session, Options(accelerometer=False))
     row.update({"stage": "solve", "exit_without": without["exit"], "cpu_s_without": without["cpu_s"]})
     if without["exit"]:
         row["message_without"] = without["message"]
     else:
         row["warnings_without"] = [str(w) for w in without["cal"].warnings]
     if without["exit"] == 3:   # refused for its std or its motion: what it would have given, for the comparison
-        without = solve(session, Options(force=True))
+        without = solve(session, Options(force=True, accelerometer=False))
         row["forced_exit_without"] = without["exit"]
         if without["exit"]:
             row["forced_message_without"] = without["message"]

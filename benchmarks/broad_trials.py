@@ -4,7 +4,8 @@
                                       [--no-split-check] [--out trials.json]
 
 Each trial is imported (`magyro import broad`), trimmed to its movement span +/- 10 s,
-calibrated with the defaults plus `--split-check`, and validated against the optical
+calibrated with the defaults plus `--split-check` but without the accelerometer (`--no-accelerometer`: these
+are the gyro's and the magnetometer's numbers; benchmarks/accelerometer_real.py has both), and validated against the optical
 truth (`magyro validate`). Printed per trial: dead-reckoning RMS raw -> calibrated and
 their ratio, the estimated bias minus the rest-period bias, the magnetometer lag, the
 split-half RMS z and the warnings. Then the peak-to-peak spread of the gyro parameters
@@ -47,7 +48,7 @@ def run_trial(path: Path, split_check: bool) -> dict:
     session = import_broad_movement(path, MARGIN_S)
     t_start = time.perf_counter()
     try:
-        cal = calibrate(session, Options(split_check=split_check))
+        cal = calibrate(session, Options(split_check=split_check, accelerometer=False))
     except MagyroError as exc:
         return {"error": str(exc), "seconds": time.perf_counter() - t_start}
     report = validate(session, cal)

@@ -37,7 +37,7 @@ MARGIN_S = 10.0
 def solve(session, method, split_check: bool) -> dict:
     t0 = time.perf_counter()
     try:
-        cal = calibrate(session, Options(split_check=split_check), method)
+        cal = calibrate(session, Options(split_check=split_check, accelerometer=False), method)
     except MagyroError as exc:
         return {"exit": exc.exit_code, "error": str(exc), "seconds": time.perf_counter() - t0}
     return {"exit": 0, "cal": cal, "seconds": time.perf_counter() - t0}

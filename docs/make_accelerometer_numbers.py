@@ -127,7 +127,7 @@ def every_real_table(r: dict) -> str:
     """benchmarks/accelerometer_real.py's record: one row per recording, the absent ones listed below."""
     present = [row for row in r["rows"] if "absent" not in row]
     absent = [row for row in r["rows"] if "absent" in row]
-    head = (f"Every real recording at hand, solved with the defaults and with `--accelerometer` "
+    head = (f"Every real recording at hand, solved with `--no-accelerometer` and with `--accelerometer` "
             f"(`{r['provenance']['command']}`, {r['provenance']['date']}, {r['provenance']['commit']}); a refusal "
             "with the accelerometer for the motion or the std (exit 3) forced too, its numbers then those `--force` "
             "reports, and a refusal without it forced for the columns that compare:\n\n")

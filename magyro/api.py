@@ -48,7 +48,7 @@ def calibrate(session: Session, options: Options | None = None, method=None) -> 
 def calibrate_with_history(session: Session, options: Options | None = None, method=None):
     """(Calibration, the EKF's history or None): `calibrate`, keeping the filter's estimates over time when the
     method has them. The calibration is the same, number for number, as `calibrate`'s."""
-    from magyro.methods import check_method_options, run_method
+    from magyro.methods import check_method_options, with_accelerometer_decided
     from magyro.progress import step
 
     options = options or Options()
@@ -56,11 +56,9 @@ def calibrate_with_history(session: Session, options: Options | None = None, met
     check_method_options(method, options, session)
     step("checking the recording")
     session, recording = checked_recording(session, options)
-    plain = replace(options, split_check=False)
-    if hasattr(method, "calibrate_with_history"):
-        cal, history = method.calibrate_with_history(session, plain)
-    else:
-        cal, history = run_method(method, session, plain), None
+    cal, history = solved_with_history(method, session, replace(options, split_check=False), options.accelerometer is None
+                                       and with_accelerometer_decided(method, options, session).accelerometer)
+    options = replace(options, accelerometer=cal.accelerometer is not None)   # the halves as the whole
     step("checking that the result explains the recording")
     cal.recording = recording
     cal.warnings[:0] = [f"recording: {f.message}; {f.fix}" for f in recording.warnings if not f.repaired]
@@ -68,6 +66,34 @@ def calibrate_with_history(session: Session, options: Options | None = None, met
     if options.split_check:
         add_split_check(cal, session, options, method)
     return cal, history
+
+
+def solved_with_history(method, session: Session, options: Options, accelerometer_by_default: bool):
+    """(Calibration, history or None) of the method. With `accelerometer_by_default` (the session has one and the
+    options left it to magyro) the accelerometer joins the solve, and when it cannot be calibrated (its std past the
+    refusal bound, a hand too big for gravity to be read, or no solution with it; with --force too) the gyro and the
+    magnetometer are calibrated alone, saying why."""
+    from magyro.errors import AccelerometerRefused, SolverError, one_line
+    from magyro.methods import run_method
+    from magyro.nls.run import accelerometer_gate
+
+    def run(opts):
+        if hasattr(method, "calibrate_with_history"):
+            return method.calibrate_with_history(session, opts)
+        return run_method(method, session, opts), None
+
+    if not accelerometer_by_default:
+        return run(options)
+    try:
+        cal, history = run(replace(options, accelerometer=True))
+        if options.force:   # --force lets the gyro through; an accelerometer nobody asked for is left out as without it
+            accelerometer_gate(cal, replace(options, force=False))
+        return cal, history
+    except (AccelerometerRefused, SolverError) as refused:
+        cal, history = run(replace(options, accelerometer=False))
+        cal.warnings.insert(0, f"accelerometer left out: {one_line(refused, None)} (--accelerometer insists: exit "
+                               f"{refused.exit_code}; --no-accelerometer leaves it out without trying)")
+        return cal, history
 
 
 def checked_recording(session: Session, options: Options):

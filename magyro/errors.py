@@ -28,6 +28,10 @@ class ObservabilityError(MagyroError):
         self.report = report
 
 
+class AccelerometerRefused(ObservabilityError):
+    """The accelerometer's calibration is too uncertain to be worth having (its solved std past the refusal bound)."""
+
+
 class SolverError(MagyroError):
     """The solver failed to produce a calibration."""
 

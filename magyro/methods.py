@@ -7,6 +7,8 @@ back into the module of knobs it is given.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 from magyro.errors import InputError
 from magyro.nls.method import NLS
 
@@ -40,6 +42,15 @@ def check_method_options(method, options, session=None) -> None:
         raise InputError("--accelerometer: the session has no accelerometer (columns ax ay az, m/s^2)"
                          + (f": {why}" if why else "; import it with its accelerometer") + ", or solve without "
                          "--accelerometer")
+
+
+def with_accelerometer_decided(method, options, session):
+    """`options` with `accelerometer` decided when it is None (the default): the least squares calibrates the
+    accelerometer whenever the session has one (ax ay az); the EKF never does."""
+    if options.accelerometer is not None:
+        return options
+    has = session.acc_m_s2 is not None and len(session.acc_m_s2) >= 2
+    return replace(options, accelerometer=bool(has and isinstance(method, NLS)))
 
 
 def calibrator(method):

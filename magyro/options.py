@@ -79,7 +79,9 @@ class Options:
     split_check: bool = False               # also calibrate each half alone and compare (magyro.result.consistency)
     max_std: StdBounds = StdBounds()        # the refusal bound: the gate refuses above it (force: solve anyway)
     repairs: Repairs = Repairs()            # what the recording check may repair (restamps, held, saturation, spikes)
-    accelerometer: bool = False             # the accelerometer joins the least squares (issue 26; needs ax ay az)
+    accelerometer: bool | None = None       # the accelerometer in the least squares (issue 26): None when the session
+                                            # has ax ay az (left out, saying why, if it cannot be calibrated); True
+                                            # required (exit 2 without ax ay az, exit 3 past its bound); False never
     gravity_m_s2: float = STANDARD_GRAVITY_M_S2   # the local gravity the accelerometer is calibrated against
 
     @classmethod

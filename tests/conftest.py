@@ -78,9 +78,13 @@ def shared_across_workers(tmp_path_factory, key: str, compute):
 
 @pytest.fixture(scope="session")
 def broad02_solved(tmp_path_factory):
-    """(session, calibration) of the shipped BROAD trial 2, default options: solved once per run (read-only)."""
+    """(session, calibration) of the shipped BROAD trial 2, the gyro and the magnetometer alone (default options but
+    `accelerometer=False`, `magyro solve --no-accelerometer`): solved once per run (read-only)."""
+    from magyro.options import Options
+
     session = load_session(SHIPPED_BROAD_02)
-    return session, shared_across_workers(tmp_path_factory, "broad-02-default", lambda: calibrate(session))
+    return session, shared_across_workers(tmp_path_factory, "broad-02-gyro",
+                                          lambda: calibrate(session, Options(accelerometer=False)))
 
 
 @pytest.fixture(scope="session")

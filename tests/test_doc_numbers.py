@@ -29,8 +29,10 @@ BROAD = DOCS.parent.parent / "shared" / "data" / "broad"
 
 
 @pytest.fixture(scope="module")
-def readme_blocks(broad02_solved):
-    return readme.blocks(broad02_solved)
+def readme_blocks(broad02_acc_solved):
+    """The README's blocks from the default solve of the shipped trial 02, which has an accelerometer it calibrates
+    (the same calibration as `Options(accelerometer=True)`, conftest's broad02_acc_solved)."""
+    return readme.blocks(broad02_acc_solved)
 
 
 def stale_blocks(page: Path, made: dict[str, str]) -> list[str]:
@@ -56,9 +58,9 @@ def test_readme_has_no_block_without_a_generator(readme_blocks):
     assert_every_block_generated(readme, readme_blocks)
 
 
-def test_readme_quotes_the_lag_the_solve_prints(broad02_solved, readme_blocks):
+def test_readme_quotes_the_lag_the_solve_prints(broad02_acc_solved, readme_blocks):
     """The issue's example: the README said +/-0.33 ms where `magyro solve` printed +/-0.45."""
-    cal = broad02_solved[1]
+    cal = broad02_acc_solved[1]
     assert f"{1e3 * cal.time_offset_s:.2f} +/- {1e3 * cal.to_dict()['std']['time_offset_s']:.2f} ms" in (
         readme_blocks["shipped-results"])
 
@@ -239,7 +241,7 @@ def test_the_std_record_is_what_trial_02_gives_now():
     import magyro
 
     session = bench.import_broad_movement(sorted(BROAD.glob("02_*.mat"))[0], bench.MARGIN_S)
-    cal = magyro.calibrate(session, magyro.Options())
+    cal = magyro.calibrate(session, bench.GYRO_ALONE)
     recorded = blocks_module.read_record(real_data.STD_RECORD)["trials"]["02"]
     assert 100 * cal.noise.field_disturbance.std_fraction == pytest.approx(recorded["disturbance_percent"], rel=1e-3)
     assert bench.split_rms_z(session, cal) == pytest.approx(

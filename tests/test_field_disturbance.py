@@ -130,7 +130,7 @@ def test_the_bounds_hold_for_the_solved_std_too(tmp_path, run_magyro, assert_pla
     out = tmp_path / "cal.json"
     message = assert_plain_failure(run_magyro("solve", DATA / "broad-02.parquet", "--max-std-bias-deg-s", "0.02",
                                               "-o", out, "-q"), 3)
-    assert "one-sigma bias y (deg/s)" in message and "the field wanders by 0.7 %" in message, message
+    assert "one-sigma bias" in message and "the field wanders by 0.7 %" in message, message
     assert not out.exists()
     forced = run_magyro("solve", DATA / "broad-02.parquet", "--max-std-bias-deg-s", "0.02", "--force", "-o", out, "-q")
     assert forced.returncode == 0, forced.stderr

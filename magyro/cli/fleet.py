@@ -28,7 +28,7 @@ def batch(
     redo: bool = typer.Option(False, "--redo", help="Solve every device again, even those already done with the same input and options."),
     reports: bool = typer.Option(False, "--reports", help="Also write each device's HTML report into reports/ (needs magyro[plot]; slower)."),
     split_check: bool = typer.Option(False, "--split-check", help="Also calibrate each half of every recording alone (about 2x the time); gives the split_rms_z column."),
-    accelerometer: bool = typer.Option(False, "--accelerometer/--no-accelerometer", help="Calibrate each device's accelerometer (ax ay az, m/s^2) in the same least squares (as magyro solve --accelerometer): gives the acc_* columns the max_*_acc_* limits bound (default: off)."),
+    accelerometer: Optional[bool] = typer.Option(None, "--accelerometer/--no-accelerometer", help="Calibrate each device's accelerometer (ax ay az, m/s^2) in the same least squares, as magyro solve does: gives the acc_* columns the max_*_acc_* limits bound. Default: for each device whose session has one (left out, saying why, where it cannot be calibrated); --accelerometer insists, --no-accelerometer never."),
     gravity: float = typer.Option(STANDARD_GRAVITY_M_S2, "--gravity", min=9.7, max=9.9, help="The local gravity in m/s^2 the accelerometers are calibrated against."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the files' metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),

@@ -35,7 +35,7 @@ def solve(
     history: Optional[Path] = typer.Option(None, "--history", help="--method ekf: write K, bias, m^i and their 1-sigma over time (Parquet)."),
     history_plot: Optional[Path] = typer.Option(None, "--history-plot", help="--method ekf: plot them like the paper's Fig. 3/6/7 (needs magyro[plot])."),
     trajectory: Optional[Path] = typer.Option(None, "--trajectory", help="--method nls: write the solved attitude at the nodes (quaternion C_m_i and its std) and the calibrated field (Parquet)."),
-    accelerometer: bool = typer.Option(False, "--accelerometer/--no-accelerometer", help="--method nls: calibrate the accelerometer (ax ay az, m/s^2) in the same least squares: K_a, bias, C_b_a against gravity (default: off)."),
+    accelerometer: Optional[bool] = typer.Option(None, "--accelerometer/--no-accelerometer", help="--method nls: calibrate the accelerometer (ax ay az, m/s^2) in the same least squares: K_a, bias, C_b_a against gravity. Default: when the session has one, left out with a warning saying why when it cannot be calibrated; --accelerometer insists (exit 2 without one, exit 3 past its bound), --no-accelerometer never."),
     gravity: float = typer.Option(STANDARD_GRAVITY_M_S2, "--gravity", min=9.7, max=9.9, help="The local gravity in m/s^2 the accelerometer is calibrated against."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
 ):

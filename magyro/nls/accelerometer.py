@@ -16,8 +16,12 @@ of their variance (BROAD 07, 09, 21, 30: K_a 0.12-0.75 and C_b_a up to 76 deg). 
     acceleration variance there (the residuals' mean square over a second, less the white part: zero at rest,
     tenths of m/s^2 while a hand turns the device). The hand's acceleration lasts longer than an interval: the
     std counts that correlation (nls/hand_motion.py);
-  * at the node on each rest at either end, the rest's mean accelerometer against gravity, weighted by the white
-    noise of that mean alone: still, the device's attitude is that node's, and the hand adds nothing.
+  * at the first node inside each rest (`rests_at_nodes`), the rest's mean accelerometer against gravity, weighted
+    by the white noise of that mean alone: still, the device's attitude is that node's, and the hand adds nothing.
+    The interval means wholly inside a rest are left out: the rest counts once.
+
+A hand that accelerates the device by more than HAND_LIMIT_OF_G of g while turning moves with the turning and biases
+the fit in a way no std counts: the solve refuses the accelerometer then (`hand_too_big`, nls/run.py).
 
 The weights come from the residuals at the start and are measured again from the solved residuals
 (`hand_weights`, called between IPOPT's passes).
@@ -31,12 +35,14 @@ import numpy as np
 from magyro import so3
 from magyro.front.differences import white_noise_std
 from magyro.nls.grid import Grid
+from magyro.result.accelerometer import HAND_LIMIT_OF_G
 from magyro.result.reported import qr_split
 from magyro.session import HOLE_FACTOR
 
 HAND_WINDOW_S = 1.0          # the weights: the hand's acceleration variance is measured over this window
 HAND_MAX_LAG_S = 30.0        # its autocorrelation is measured up to this lag (a hand's slowest sway)
 HAND_SIZE_WINDOW_S = 30.0    # the std: its variance is measured over as long (`hand_motion`)
+HAND_REACH_M = 0.5           # the device's position stays within this std (m) of where it is turned (`reach_cap`)
 
 
 @dataclass
@@ -46,10 +52,7 @@ class AccelerometerStart:
     y: np.ndarray              # (n_int, stride, 3) raw accelerometer at each segment start
     share: np.ndarray          # (n_int, stride) weight of each segment start in its interval's mean (rows sum to 1 or 0)
     count: np.ndarray          # (n_int,) samples in each interval's mean
-    rest_start: np.ndarray | None   # (mean raw accelerometer of the rest at the first node, its samples) or None
-    rest_end: np.ndarray | None
-    rest_start_n: int
-    rest_end_n: int
+    rests: list                # RestAtNode of every rest that holds a node: its mean counts there, once
     A0: np.ndarray
     b0: np.ndarray
     u0_i: np.ndarray           # unit up direction in frame i
@@ -71,10 +74,10 @@ class AccelerometerStart:
         w = self.weight if weight is None else weight
         rest0, rest1 = np.zeros((n, 3)), np.zeros((n, 3))
         w0, w1 = np.zeros((n, 1)), np.zeros((n, 1))
-        if self.rest_start is not None:
-            rest0[0], w0[0] = self.rest_start, 1.0 / (self.sigma_white_m_s2 / np.sqrt(self.rest_start_n))
-        if self.rest_end is not None:
-            rest1[-1], w1[-1] = self.rest_end, 1.0 / (self.sigma_white_m_s2 / np.sqrt(self.rest_end_n))
+        for r in self.rests:     # the kernel reads a rest at an interval's start node, or at the last interval's end
+            mean, weight = (rest0, w0) if r.node < n else (rest1, w1)
+            k = min(r.node, n - 1)
+            mean[k], weight[k] = r.mean_raw, np.sqrt(r.samples) / self.sigma_white_m_s2
         return {"yacc": self.y.reshape(n, -1), "cacc": self.share, "w_acc": np.asarray(w, float)[:, None],
                 "yrest0": rest0, "wrest0": w0, "yrest1": rest1, "wrest1": w1}
 
@@ -103,11 +106,36 @@ def rest_mean(t_s: np.ndarray, acc: np.ndarray, segment: tuple[float, float] | N
     return (acc[keep].mean(axis=0), int(keep.sum())) if keep.sum() >= 10 else (None, 0)
 
 
-def end_rests(full_session, t_node_s: np.ndarray, rest_segments) -> tuple:
-    """(the rest the first node sits in, the rest the last node sits in), each (start, end) s or None."""
-    first = next((seg for seg in rest_segments if seg[0] <= t_node_s[0] <= seg[1]), None)
-    last = next((seg for seg in rest_segments if seg[0] <= t_node_s[-1] <= seg[1]), None)
-    return first, (last if last is not first else None)
+@dataclass(frozen=True)
+class RestAtNode:
+    """A rest that holds a node: the node, the rest's mean raw accelerometer, its samples, its span (s)."""
+
+    node: int
+    mean_raw: np.ndarray
+    samples: int
+    span_s: tuple[float, float]
+
+
+def rests_at_nodes(full_session, t_node_s: np.ndarray, rest_segments) -> list[RestAtNode]:
+    """Every rest of the session (the front end's, `rest_segments`) that holds a node and has 10 samples, at the
+    first node inside it: still, the device's attitude there is the node's and the hand adds nothing, so the rest's
+    mean is read against gravity at that node, weighted by the white noise of that mean alone."""
+    out = []
+    for seg in rest_segments:
+        inside = np.flatnonzero((t_node_s >= seg[0]) & (t_node_s <= seg[1]))
+        mean, n = rest_mean(full_session.t_acc_s, full_session.acc_m_s2, seg)
+        if len(inside) and mean is not None:
+            out.append(RestAtNode(int(inside[0]), mean, n, (float(seg[0]), float(seg[1]))))
+    return out
+
+
+def inside_rests(t_node_s: np.ndarray, rests: list[RestAtNode]) -> np.ndarray:
+    """(n_int,) True for an interval wholly inside a rest counted at its node: its samples are in the rest's mean
+    already, and counted again as an interval's mean they made the rest count twice."""
+    inside = np.zeros(len(t_node_s) - 1, bool)
+    for r in rests:
+        inside |= (t_node_s[:-1] >= r.span_s[0]) & (t_node_s[1:] <= r.span_s[1])
+    return inside
 
 
 def white_noise_m_s2(full_session, rest_segments) -> float:
@@ -127,17 +155,17 @@ def accelerometer_start(full_session, session, grid: Grid, C_m_i_nodes: np.ndarr
     gyro's), b0 = 0, u^i from the first rest (or the first interval) read in that frame; weights from the
     residuals there."""
     y, ok = samples_at(session.t_acc_s, session.acc_m_s2, segment_start_times(grid))
+    rests = rests_at_nodes(full_session, grid.t_node_s, rest_segments)
+    ok &= ~inside_rests(grid.t_node_s, rests)[:, None]
     count = ok.sum(axis=1)
     share = np.where(count[:, None] > 0, ok / np.maximum(count, 1)[:, None], 0.0)
-    first, last = end_rests(full_session, grid.t_node_s, rest_segments)
-    rest0, n0 = rest_mean(full_session.t_acc_s, full_session.acc_m_s2, first)
-    rest1, n1 = rest_mean(full_session.t_acc_s, full_session.acc_m_s2, last)
     A0 = qr_split(K0)[0]
-    at_node0 = rest0 if rest0 is not None else np.einsum("sj,sjk->k", share[:1], y[:1])
+    first = next((r for r in rests if r.node == 0), None)
+    at_node0 = first.mean_raw if first is not None else np.einsum("sj,sjk->k", share[:1], y[:1])
     u0 = A0 @ at_node0
     u0 = u0 / np.linalg.norm(u0)
     sigma = white_noise_m_s2(full_session, rest_segments)
-    start = AccelerometerStart(y, share, count, rest0, rest1, n0, n1, A0, np.zeros(3), u0, float(g_m_s2), sigma,
+    start = AccelerometerStart(y, share, count, rests, A0, np.zeros(3), u0, float(g_m_s2), sigma,
                                grid.interval_s, np.zeros(len(count)), grid)
     start.weight = hand_weights(start_residuals(start, C_m_i_nodes), start)
     return start
@@ -151,6 +179,7 @@ class HandMotion:
     weight: np.ndarray
     hand_std_m_s2: np.ndarray
     correlation: np.ndarray
+    variance_m2_s4: float       # the hand's variance per axis the correlation's spectrum is capped with (`reach_cap`)
 
 
 def start_residuals(start: AccelerometerStart, C_m_i_nodes: np.ndarray) -> np.ndarray:
@@ -168,8 +197,7 @@ def hand_weights(e: np.ndarray, start: AccelerometerStart, correlated: float = 1
     `correlated` (`correlation_factor`: 1 for a hand independent from one interval to the next)."""
     used = start.count > 0
     white = white_variance(start)
-    window = max(1, int(round(HAND_WINDOW_S / float(np.median(start.interval_s)))))
-    local = local_mean_square(np.sqrt(np.sum(e**2, axis=1) / 3.0), used, window)
+    local = local_mean_square(np.sqrt(np.sum(e**2, axis=1) / 3.0), used, intervals_in(HAND_WINDOW_S, start))
     return np.where(used, 1.0 / np.sqrt(white + correlated * np.maximum(local - white, 0.0)), 0.0)
 
 
@@ -180,30 +208,90 @@ def solved_hand_weights(e: np.ndarray, start: AccelerometerStart) -> np.ndarray:
     weighted as independent, a few seconds of sway counted as dozens of independent intervals and pulled the gyro
     with them (paper-table1-acc, 12 seeds: the gyro up to 4.8 of its std from the truth, its std up to 1.9x the
     same session's without the accelerometer; weighted by c: 2.1 and 1.13x)."""
-    return hand_weights(e, start, correlation_factor(hand_autocorrelation(e, start.count > 0, start)))
+    used = start.count > 0
+    rho = hand_autocorrelation(e, used, start)
+    return hand_weights(e, start, correlation_factor(rho, hand_variance(e, used, start), interval_of(start)))
+
+
+def hand_variance(x: np.ndarray, used: np.ndarray, start: AccelerometerStart) -> float:
+    """The hand's variance per axis, m^2/s^4, in a series x (n_int, k) of what it leaves in the `used` intervals:
+    x's mean square less the white noise's."""
+    if not used.any():
+        return 0.0
+    return max(float(np.mean(x[used] ** 2)) - float(np.mean(white_variance(start)[used])), 0.0)
+
+
+def intervals_in(seconds: float, start: AccelerometerStart) -> int:
+    """How many of the grid's typical intervals make `seconds` (at least 1)."""
+    return max(1, int(round(seconds / interval_of(start))))
+
+
+def interval_of(start: AccelerometerStart) -> float:
+    """The grid's typical interval, s: the time step of the hand's autocorrelation."""
+    return float(np.median(start.interval_s))
 
 
 def hand_autocorrelation(x: np.ndarray, used: np.ndarray, start: AccelerometerStart) -> np.ndarray:
     """The hand's autocorrelation over intervals (`tapered_autocorrelation`, up to HAND_MAX_LAG_S) from a series x
     (n_int, k) of what it leaves in the `used` intervals, over its share of x's mean square (the rest is the white
     noise's)."""
-    max_lag = min(int(used.sum()) // 2, int(round(HAND_MAX_LAG_S / float(np.median(start.interval_s)))))
+    max_lag = min(int(used.sum()) // 2, int(round(HAND_MAX_LAG_S / interval_of(start))))
     total = float(np.mean(x[used] ** 2)) if used.any() else 0.0
-    share = max(total - float(np.mean(white_variance(start)[used])), 0.0) / total if total > 0 else 0.0
+    share = hand_variance(x, used, start) / total if total > 0 else 0.0
     return tapered_autocorrelation(x[used], max_lag, share)
 
 
-def correlation_factor(rho: np.ndarray) -> float:
-    """The peak over frequency of the spectrum of the autocorrelation rho (lags 0, 1, ..., tapered: never negative)
-    against a white process's of the same variance (at least 1): how much more variance a correlated process puts
-    at its worst frequency than independent intervals would."""
+def hand_spectrum(rho: np.ndarray, n: int, variance_m2_s4: float, interval_s: float) -> np.ndarray:
+    """The hand's spectrum over a white one's of the same variance at the n // 2 + 1 frequencies of an n-point
+    transform (n > 2 max lag: no lag wraps around): that of the autocorrelation rho (lags 0, 1, ...; tapered, so
+    never negative), capped where no hand could put it (`reach_cap`)."""
     lag = len(rho) - 1
-    n = 1 << int(np.ceil(np.log2(8 * (lag + 1))))
     kernel = np.zeros(n)
     kernel[: lag + 1] = rho
     if lag:
         kernel[n - lag :] = rho[1:][::-1]
-    return float(max(np.fft.rfft(kernel).real.max(), 1.0))
+    spectrum = np.fft.rfft(kernel).real
+    return np.minimum(spectrum, reach_cap(np.fft.rfftfreq(n, interval_s), variance_m2_s4, interval_s))
+
+
+def reach_cap(f_hz: np.ndarray, variance_m2_s4: float, interval_s: float) -> np.ndarray:
+    """The most of the hand's spectrum (over a white one's of its variance per axis, `variance_m2_s4`) that a
+    device held within HAND_REACH_M of where it is turned can have at the frequencies f_hz.
+
+    Its acceleration is its position's second derivative, so its power below f is at most (2 pi f)^4 times the
+    position's variance: d/df of (2 pi f)^4 HAND_REACH_M^2 bounds its one-sided density, which a white process of
+    the hand's variance over intervals of interval_s has at 2 variance interval_s. The bound is zero at zero
+    frequency: a hand has no acceleration that lasts. What the measured autocorrelation puts there is the fit's
+    own slow error (a scale or bias not yet right, a tilt the room's field pulled the attitude into), and counted
+    as hand it made the std count the room twice (BROAD trial 30, a magnet beside the path: the gyro's bias z std
+    1.5 deg/s with the accelerometer, 12x the std without it, while its dead reckoning improved 4.5x; the optical
+    position puts under 0.1 % of every trial's hand acceleration below 0.1 Hz, the autocorrelation put 12x a white
+    process's there). HAND_REACH_M: BROAD's optical position has a std of 0.04-0.16 m on each axis in the
+    hand-turned trials and 0.14-0.45 m in those that carry the device about (21, 30)."""
+    if variance_m2_s4 <= 0:
+        return np.full(np.shape(f_hz), np.inf)
+    return 4.0 * (2.0 * np.pi) ** 4 * np.asarray(f_hz) ** 3 * HAND_REACH_M**2 / (2.0 * variance_m2_s4 * interval_s)
+
+
+def correlation_factor(rho: np.ndarray, variance_m2_s4: float, interval_s: float) -> float:
+    """The peak over frequency of the hand's spectrum (`hand_spectrum` of the autocorrelation rho, lags 0, 1, ...)
+    against a white process's of the same variance (at least 1): how much more variance a correlated process puts
+    at its worst frequency than independent intervals would."""
+    n = 1 << int(np.ceil(np.log2(8 * len(rho))))
+    return float(max(hand_spectrum(rho, n, variance_m2_s4, interval_s).max(), 1.0))
+
+
+def hand_too_big(hand_rms_m_s2: float, g_m_s2: float) -> bool:
+    """Does the hand accelerate the device too much for gravity to calibrate the accelerometer: above
+    HAND_LIMIT_OF_G of g (RMS per axis while turning, `hand_motion`)?
+
+    Such a hand moves with the turning, and no std counts what that does: the fit takes part of it for scale and
+    bias. BROAD against its optical truth: with the hand's acceleration taken out of the readings (the optical
+    position's, turned into the body), trial 09's K_a x came out 0.994 +/- 0.004; as recorded, 0.857 +/- 0.011
+    (the hand 1.19 m/s^2 RMS). Trials 07, 09, 21, 30, 34, 36 (hand 1.0-2.4 m/s^2) gave scale factors 4-30 % from
+    1; trials 02, 03, 05 (hand 0.32-0.43 m/s^2) within 0.35 % and their std, the optical position's hand
+    0.27-0.35 m/s^2. The bound sits between the two groups: 0.69 m/s^2 at 9.81."""
+    return hand_rms_m_s2 > HAND_LIMIT_OF_G * g_m_s2
 
 
 def white_variance(start: AccelerometerStart) -> np.ndarray:
@@ -261,7 +349,8 @@ def hand_motion(excess: np.ndarray, weight: np.ndarray, start: AccelerometerStar
     size = np.sqrt(np.sum(residuals**2, axis=1) / 3.0)
     hand = np.where(used, np.maximum(local_mean_square(size, used, window) - white, 0.0), 0.0)
     e = np.where(used, excess - (np.mean(excess[used]) if used.any() else 0.0), 0.0)  # less what g or a scale leaves
-    return HandMotion(weight, np.sqrt(hand), hand_autocorrelation(e[:, None], used, start))
+    variance = float(np.mean(hand[used])) if used.any() else 0.0
+    return HandMotion(weight, np.sqrt(hand), hand_autocorrelation(e[:, None], used, start), variance)
 
 
 def tapered_autocorrelation(z: np.ndarray, max_lag: int, hand_share: float) -> np.ndarray:

@@ -24,6 +24,7 @@ import casadi as ca
 import numpy as np
 
 from magyro import so3
+from magyro.nls.accelerometer import hand_spectrum
 from magyro.nls.interval import data_layout
 from magyro.nls.problem import JointProblem
 from magyro.nls.reduction import Reduced
@@ -33,10 +34,11 @@ CHUNK = 1024   # intervals per piece of the sensitivities
 
 def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, reduced: Reduced, information: np.ndarray,
                          hand_std_m_s2: np.ndarray, weights_hand_std_m_s2: np.ndarray,
-                         correlation: np.ndarray) -> np.ndarray:
+                         correlation: np.ndarray, variance_m2_s4: float) -> np.ndarray:
     """I^-1 Omega I^-1: what the hand's correlated acceleration adds to the corrections' covariance.
     `hand_std_m_s2` (n_int,) is s_h per interval as measured, `weights_hand_std_m_s2` the one the weights hold (I
-    counts it: it is taken out again), `correlation` rho at lags 0, 1, ... intervals."""
+    counts it: it is taken out again), `correlation` rho at lags 0, 1, ... intervals, its spectrum capped where no
+    hand held within reach could put it (`accelerometer.hand_spectrum`, with the hand's variance `variance_m2_s4`)."""
     if not np.any(hand_std_m_s2 > 0) and not np.any(weights_hand_std_m_s2 > 0):
         return np.zeros_like(information)
     info_inv = np.linalg.inv(information)
@@ -45,17 +47,16 @@ def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, re
     counted = sensitivities * weights_hand_std_m_s2[:, None, None]
     n, L = len(U), len(correlation) - 1
     size = 1 << int(np.ceil(np.log2(n + L + 1)))
-    kernel = np.zeros(size)
-    kernel[: L + 1] = correlation
-    kernel[size - L :] = correlation[1:][::-1]
-    S = np.fft.rfft(kernel).real                                  # symmetric kernel: a real spectrum
+    S = hand_spectrum(correlation, size, variance_m2_s4, float(np.median(problem.grid.interval_s)))
     F = np.fft.rfft(U, size, axis=0)                              # (size/2 + 1, n_theta, 3)
     weights = np.full(len(S), 2.0)
     weights[0] = 1.0
     if size % 2 == 0:
         weights[-1] = 1.0
-    omega = np.einsum("f,fac,fbc->ab", S * weights, F, F.conj()).real / size
-    omega -= np.einsum("nac,nbc->ab", counted, counted)           # what I counts as independent
+    G = (F * np.sqrt(np.maximum(S * weights, 0.0) / size)[:, None, None]).transpose(0, 2, 1).reshape(-1, F.shape[1])
+    omega = (G.T @ G.conj()).real                                 # sum over f and axes of S F F^H / N: one product
+    held = counted.transpose(0, 2, 1).reshape(-1, counted.shape[1])
+    omega -= held.T @ held                                        # what I counts as independent
     total = information + omega                                   # J^T W (white + hand) W J: positive semi-definite,
     value, vector = np.linalg.eigh(total)                         # but for rounding (the weights may count more hand
     total = (vector * np.maximum(value, 0.0)) @ vector.T          # than measured: then the std is below I^-1)

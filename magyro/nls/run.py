@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from magyro.errors import ObservabilityError, SolverError
+from magyro.errors import AccelerometerRefused, ObservabilityError, SolverError
 from magyro.result.parts import solver_outcome
 from magyro.front import noise
 from magyro.front.prepare import Prepared, prepare
@@ -26,9 +26,9 @@ from magyro.nls.method import NLS
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.reduction import gauss_newton_decrement, reduce_hessian
 from magyro.nls.hand_motion import hand_covariance_term
-from magyro.nls.accelerometer import hand_motion, specific_force_excess, white_variance
+from magyro.nls.accelerometer import HAND_LIMIT_OF_G, HandMotion, hand_motion, hand_too_big, white_variance
 from magyro.nls.solve import (build_problem, problem_parameters, residual_matrix, solve_passes,
-                              solved_accelerometer_residuals)
+                              solved_accelerometer_residuals, solved_excess)
 from magyro.nls.disturbance import disturbance_covariance
 from magyro.nls.variance import secant_factor, variance_components
 from magyro.nls.trajectory import attitude_trajectory, solved_attitudes
@@ -70,11 +70,15 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     sol.stats["gauss_newton_decrement"] = decrement
     cov_theta, disturbance = disturbance_covariance(problem, sol.x, sol.p, reduced, solved_attitudes(problem, lin, sol.x),
                                                     prep.session)
-    if problem.accelerometer:
-        cov_theta = cov_theta + hand_term(problem, lin, sol, reduced)
+    hand = solved_hand_motion(problem, lin, sol) if problem.accelerometer else None
+    if hand is not None:
+        cov_theta = cov_theta + hand_term(problem, lin, sol, reduced, hand)
     cal = assemble(problem, prep, grid, sol, reduced, method, time.perf_counter() - t_start, cov_theta, disturbance)
+    if hand is not None:
+        cal.accelerometer.hand_rms_m_s2 = float(np.sqrt(hand.variance_m2_s4))
+    acc_warnings = accelerometer_gate(cal, options)   # first: an accelerometer past its bound widens the gyro's std
     cal.warnings.extend(gate_warnings or solved_accuracy_gate(cal, options))
-    cal.warnings.extend(accelerometer_gate(cal, options))
+    cal.warnings.extend(acc_warnings)
     if method.trajectory:
         cal.trajectory = attitude_trajectory(problem, grid, lin, sol.x, reduced, prep.session, cal.R, cal.h, cov_theta)
     return cal
@@ -90,21 +94,20 @@ def solved_hessian(problem: JointProblem, sol):
     return problem.hessian_values(sol.x if x is None else x, sol.p)
 
 
-def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.ndarray:
-    """What the hand's correlated acceleration adds to the corrections' covariance (`magyro.nls.hand_motion`), its
-    size and autocorrelation measured at the solution (`magyro.nls.accelerometer.hand_motion`)."""
-    theta, g = sol.x[: problem.n_theta], problem.globals_of(sol.p)
-    A, b, _, _, lever = (np.array(v) for v in problem.accelerometer_function(theta, g))
-    K, eps = (np.array(v) for v in problem.physical_function(theta, g)[2:4])
-    start = lin.accelerometer
+def solved_hand_motion(problem: JointProblem, lin: Linearisation, sol) -> HandMotion:
+    """The hand's acceleration at the solution: its size and autocorrelation (`magyro.nls.accelerometer.hand_motion`)."""
     r = residual_matrix(problem, sol.x, sol.p) if sol.residuals is None else sol.residuals
-    excess = specific_force_excess(start, A, b.ravel(), K, eps.ravel(), lever.ravel())
-    hand = hand_motion(excess, sol.acc_weight, start, solved_accelerometer_residuals(problem, r, sol.acc_weight))
+    return hand_motion(solved_excess(problem, lin.accelerometer, sol.x, sol.p), sol.acc_weight, lin.accelerometer,
+                       solved_accelerometer_residuals(problem, r, sol.acc_weight))
+
+
+def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced, hand: HandMotion) -> np.ndarray:
+    """What the hand's correlated acceleration adds to the corrections' covariance (`magyro.nls.hand_motion`)."""
     used = sol.acc_weight > 0    # an interval with no accelerometer sample has weight 0: no hand counted there
-    held = np.divide(1.0, sol.acc_weight**2, out=np.zeros_like(sol.acc_weight), where=used) - white_variance(start)
+    held = np.divide(1.0, sol.acc_weight**2, out=np.zeros_like(sol.acc_weight), where=used) - white_variance(lin.accelerometer)
     weights_hand = np.where(used, np.sqrt(np.maximum(held, 0.0)), 0.0)
     return hand_covariance_term(problem, sol.x, sol.p, reduced, reduced.information, hand.hand_std_m_s2,
-                                weights_hand, hand.correlation)
+                                weights_hand, hand.correlation, hand.variance_m2_s4)
 
 
 def not_converged_message(sol, decrement: float) -> str:
@@ -174,18 +177,26 @@ def accelerometer_shortfalls(acc, bounds) -> list[str]:
 def accelerometer_gate(cal: Calibration, options: Options) -> list[str]:
     """The refusal bound on the accelerometer's solved std (exit 3; with --force a warning). Its std counts the hand's
     acceleration: a device swung fast, or far from the point it turns about, leaves gravity too little to say."""
-    if cal.accelerometer is None:
+    acc = cal.accelerometer
+    if acc is None:
         return []
-    shortfalls = accelerometer_shortfalls(cal.accelerometer, options.max_std)
-    if not shortfalls:
+    shortfalls = accelerometer_shortfalls(acc, options.max_std)
+    hand = acc.hand_rms_m_s2
+    if hand is not None and hand_too_big(hand, acc.g_m_s2):
+        summary = (f"the hand accelerated the device by {significant(hand)} m/s^2 RMS while it turned, more than "
+                   f"{100 * HAND_LIMIT_OF_G:g} % of g ({significant(HAND_LIMIT_OF_G * acc.g_m_s2)} m/s^2): a hand that "
+                   "moves with the turning biases the accelerometer's scale factors and bias by more than their std "
+                   "(BROAD, against its optical truth: 4-30 %)")
+    elif shortfalls:
+        summary = ("the accelerometer's calibration is too uncertain to be worth having: one-sigma " + ", ".join(shortfalls))
+    else:
         return []
-    summary = ("the accelerometer's calibration is too uncertain to be worth having: one-sigma " + ", ".join(shortfalls)
-               + "; the hand's acceleration while turning swamps what gravity says: turn the device more slowly, "
-                 "about its own middle, with a few seconds still between turns")
+    summary += ("; the hand's acceleration while turning swamps what gravity says: turn the device more slowly, "
+                "about its own middle, with a few seconds still between turns")
     if options.force:
         return [f"solved with --force although {summary}"]
-    raise ObservabilityError(f"{summary} (--force reports it anyway; without --accelerometer the gyro and the "
-                             f"magnetometer are calibrated alone)")
+    raise AccelerometerRefused(f"{summary} (--force reports it anyway; with --no-accelerometer the gyro and the "
+                               f"magnetometer are calibrated alone)")
 
 
 def gate_checked(prep: Prepared) -> bool:

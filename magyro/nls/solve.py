@@ -22,7 +22,7 @@ from magyro.nls.grid import STRIDES, Grid, build_grid, typical_segment_s
 from magyro.nls.method import NLS
 from magyro.options import Options
 from magyro.observability.gate import unexcited_directions
-from magyro.nls.accelerometer import accelerometer_start, solved_hand_weights
+from magyro.nls.accelerometer import accelerometer_start, solved_hand_weights, specific_force_excess
 from magyro.nls.interval import N_GLOBAL, TIME_OFFSET_SCALE_S
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.errors import InputError, ObservabilityError
@@ -216,6 +216,16 @@ def accelerometer_residuals(problem: JointProblem, r: np.ndarray) -> np.ndarray:
 
 
 ACC_REWEIGHT_TOLERANCE = 0.1   # re-solve when the accelerometer's weights moved by more than this (RMS of log)
+
+
+def solved_excess(problem: JointProblem, start, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """(n_int,) the specific force's excess over g in each interval at the solution (x, p)
+    (`accelerometer.specific_force_excess`): the accelerometer as calibrated there, less its lever arm's
+    acceleration."""
+    theta, g = x[: problem.n_theta], problem.globals_of(p)
+    A, b, _, _, lever = (np.array(v) for v in problem.accelerometer_function(theta, g))
+    K, eps = (np.array(v) for v in problem.physical_function(theta, g)[2:4])
+    return specific_force_excess(start, A, b.ravel(), K, eps.ravel(), lever.ravel())
 
 
 def solved_accelerometer_residuals(problem: JointProblem, r: np.ndarray, weight: np.ndarray) -> np.ndarray:

@@ -14,6 +14,7 @@ from magyro.errors import InputError
 from magyro.result.parts import as_list, read_array, read_number
 
 UPPER = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+HAND_LIMIT_OF_G = 0.07   # the hand's RMS acceleration while turning above which gravity is not read (nls `hand_too_big`)
 
 
 @dataclass
@@ -28,6 +29,7 @@ class AccelerometerCalibration:
     std_misalignment_deg: np.ndarray
     lever_arm_m: np.ndarray | None = None       # from the point the device turned about, in the magnetometer's frame
     std_lever_arm_m: np.ndarray | None = None
+    hand_rms_m_s2: float | None = None          # the hand's acceleration while turning, RMS per axis (nls `hand_motion`)
 
     @classmethod
     def from_reported(cls, K_a, bias_m_s2, C_b_a, g_m_s2, up_i, std_vector, lever_arm_m=None,
@@ -59,7 +61,8 @@ class AccelerometerCalibration:
     def to_dict(self) -> dict:
         return {"K_a": as_list(self.K_a), "bias_m_s2": as_list(self.bias_m_s2), "C_b_a": as_list(self.C_b_a),
                 "euler_deg": as_list(self.euler_deg), "g_m_s2": float(self.g_m_s2), "up_i": as_list(self.up_i),
-                **({} if self.lever_arm_m is None else {"lever_arm_m": as_list(self.lever_arm_m)})}
+                **({} if self.lever_arm_m is None else {"lever_arm_m": as_list(self.lever_arm_m)}),
+                **({} if self.hand_rms_m_s2 is None else {"hand_rms_m_s2": float(self.hand_rms_m_s2)})}
 
     def std_dict(self) -> dict:
         return {"K_a": as_list(self.std_K_a), "bias_m_s2": as_list(self.std_bias_m_s2),
@@ -79,7 +82,8 @@ class AccelerometerCalibration:
                    read_array(data, "up_i", (3,), where) if "up_i" in data else np.array([0.0, 0.0, 1.0]),
                    zero("K_a", (3, 3)), zero("bias_m_s2", (3,)), zero("misalignment_deg", (3,)),
                    read_array(data, "lever_arm_m", (3,), where) if "lever_arm_m" in data else None,
-                   zero("lever_arm_m", (3,)) if "lever_arm_m" in data else None)
+                   zero("lever_arm_m", (3,)) if "lever_arm_m" in data else None,
+                   read_number(data, "hand_rms_m_s2", where, finite=True) if "hand_rms_m_s2" in data else None)
 
     def table_lines(self) -> list[str]:
         lines = ["accelerometer K_a (scale on diagonal, non-orthogonality above), +/- 1 sigma"]
@@ -94,5 +98,8 @@ class AccelerometerCalibration:
         if self.lever_arm_m is not None:
             lines.append("turned about a point, lever arm (cm, magnetometer frame)  " + "  ".join(
                 f"{100 * self.lever_arm_m[i]:+.1f} +/- {100 * self.std_lever_arm_m[i]:.1f}" for i in range(3)))
+        if self.hand_rms_m_s2 is not None:
+            lines.append(f"the hand accelerated the device by {self.hand_rms_m_s2:.2f} m/s^2 RMS while turning "
+                         f"(refused above {100 * HAND_LIMIT_OF_G:g} % of g, {HAND_LIMIT_OF_G * self.g_m_s2:.2f})")
         lines.append(f"gravity {self.g_m_s2:.5f} m/s^2 (given)")
         return lines
