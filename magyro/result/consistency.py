@@ -18,7 +18,7 @@ split-half error estimate (one degree of freedom).
 """
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 
@@ -68,9 +68,9 @@ def half_options(options, cal: Calibration):
     """
     from magyro.options import StdBounds
 
-    inf = float("inf")
+    unbounded = StdBounds(**{f.name: float("inf") for f in fields(StdBounds)})   # the accelerometer's bounds too
     return replace(options, gyro_noise_density_rad_s_sqrt_hz=cal.noise.gyro_density_rad_s_sqrt_hz, trim_rests=False,
-                   max_std=StdBounds(inf, inf, inf, inf))
+                   max_std=unbounded)
 
 
 def compare_halves(full: Calibration, halves: list[Calibration]) -> dict:
