@@ -29,7 +29,8 @@ class ObservabilityError(MagyroError):
 
 
 class AccelerometerRefused(ObservabilityError):
-    """The accelerometer's calibration is too uncertain to be worth having (its solved std past the refusal bound)."""
+    """The accelerometer cannot be calibrated: its solved std is past the refusal bound, or the hand accelerated the
+    device too much for gravity to be read (`nls.accelerometer.hand_too_big`)."""
 
 
 class SolverError(MagyroError):

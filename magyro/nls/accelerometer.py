@@ -83,9 +83,8 @@ class AccelerometerStart:
 
 
 def segment_start_times(grid: Grid) -> np.ndarray:
-    """(n_int, stride) times of every segment start."""
-    seg_s = grid.dt_s.sum(axis=2)
-    return grid.t_node_s[:-1, None] + np.cumsum(seg_s, axis=1) - seg_s
+    """(n_int, stride) times of every segment start: the grid's segment boundaries but the last."""
+    return grid.t_segment_s[:-1].reshape(grid.mag_index.shape)
 
 
 def samples_at(t_s: np.ndarray, values: np.ndarray, at_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -345,9 +344,9 @@ def hand_motion(excess: np.ndarray, weight: np.ndarray, start: AccelerometerStar
     over the hand's share of its variance (`tapered_autocorrelation`), the hand taken as isotropic."""
     used = weight > 0
     white = white_variance(start)
-    window = max(1, int(round(HAND_SIZE_WINDOW_S / float(np.median(start.interval_s)))))
     size = np.sqrt(np.sum(residuals**2, axis=1) / 3.0)
-    hand = np.where(used, np.maximum(local_mean_square(size, used, window) - white, 0.0), 0.0)
+    local = local_mean_square(size, used, intervals_in(HAND_SIZE_WINDOW_S, start))
+    hand = np.where(used, np.maximum(local - white, 0.0), 0.0)
     e = np.where(used, excess - (np.mean(excess[used]) if used.any() else 0.0), 0.0)  # less what g or a scale leaves
     variance = float(np.mean(hand[used])) if used.any() else 0.0
     return HandMotion(weight, np.sqrt(hand), hand_autocorrelation(e[:, None], used, start), variance)
