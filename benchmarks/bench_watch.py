@@ -135,7 +135,7 @@ def latency() -> list[dict]:
 
 
 def prediction_cost(repeat: int) -> list[dict]:
-    from magyro.live.monitor import predict_session
+    from magyro.live.prediction import predict_session
 
     rows = []
     for rate in (100.0, 200.0):
@@ -154,7 +154,8 @@ def prediction_cost(repeat: int) -> list[dict]:
 def agreement() -> dict:
     import magyro
     from magyro.io import load_session, write_session
-    from magyro.live.monitor import GROUPS, ExcitationMonitor, Predictor
+    from magyro.live.monitor import ExcitationMonitor
+    from magyro.live.prediction import GROUPS, Predictor
     from magyro.observability.report import accuracy_rows
     from test_watch import feed, staged_session
 

@@ -255,3 +255,57 @@ def test_live_it_reads_every_n_th_sample_and_says_the_same(broad02, most):
     for f in FACES:
         assert live.face_s[f] == pytest.approx(whole.face_s[f], rel=0.02, abs=0.1), f
     assert live.g_reference_m_s2 == pytest.approx(whole.g_reference_m_s2, rel=1e-3)
+
+
+def fed_and_observed(session, at_s: tuple[float, ...]):
+    """The monitor fed `session` (its clock from 0) in 0.5 s chunks, and at each time of `at_s`: (the watch's rank, its
+    rank with gravity, observe's rank, observe's with gravity) on the data so far; and the monitor."""
+    t0 = session.t_gyro_s[0]
+    s = dataclasses.replace(session, t_gyro_s=session.t_gyro_s - t0, t_mag_s=session.t_mag_s - t0,
+                            t_acc_s=session.t_acc_s - t0)
+    rows = [np.column_stack([t, x]) for t, x in ((s.t_gyro_s, s.gyro_rad_s), (s.t_mag_s, s.mag), (s.t_acc_s, s.acc_m_s2))]
+    mon, seen, done = ExcitationMonitor(), {}, [0, 0, 0]
+    for edge in np.arange(0.5, max(at_s) + 0.01, 0.5):
+        upto = [int(np.searchsorted(r[:, 0], edge)) for r in rows]
+        mon.add(*(r[a:b] for r, a, b in zip(rows, done, upto)))
+        done = upto
+        status = mon.update(final=edge in at_s)       # final: the accelerometer's part on all the data so far
+        if edge in at_s:
+            report = magyro.observe(s.within(0.0, mon.t_last))
+            seen[edge] = (status.rank, status.rank_with_gravity, report.analysis.rank, report.accelerometer.gyro.rank)
+    return seen, mon
+
+
+@pytest.mark.parametrize("name, at_s, first", [("broad-02", (3.5, 4.5, 6.5), (8, 12)),
+                                               ("broad-07", (2.5, 3.5, 4.5, 5.5), (2, 3))])
+def test_watch_counts_the_gyro_s_rank_as_observe_does_and_what_gravity_adds(name, at_s, first):
+    """BROAD trials 02 and 07 from their start (a rest, then turning), through the watch and through `magyro observe`
+    on the same data so far: the same rank of the gyro's 12 parameters from the field, and the same with gravity
+    beside it (observe's part 2). Just after trial 02's rest the field sees 8 of them and gravity the rest (12).
+    Integrated from the first sample, with the noise levels of third differences and an ellipsoid fitted to the rest
+    too, the watch read 12 from the field alone there, where observe reads 8; and on trial 07, whose logger repeats
+    29 % of its magnetometer rows (observe's recording check drops them), 11-12 where observe reads 8 (3-4 s)."""
+    seen, mon = fed_and_observed(load_session(DATA / f"{name}.parquet"), at_s)
+    for t, (watch_rank, watch_with, observe_rank, observe_with) in seen.items():
+        assert (watch_rank, watch_with) == (observe_rank, observe_with), (t, seen[t])
+    assert seen[at_s[0]][:2] == first and seen[at_s[-1]][:2] == (12, 12)
+
+
+def test_watch_reads_a_sensor_that_holds_its_readings_as_the_repair_does():
+    """BROAD trial 07's magnetometer repeats 29 % of its rows: watch analyses them as the recording check's repair
+    leaves them (every repeat dropped, the first of each run kept) and saves them as received."""
+    from magyro.front.repairs import repair_recording
+    from magyro.options import Repairs
+
+    s = load_session(DATA / "broad-07.parquet").within(0.0, 1e9)
+    repaired, _ = repair_recording(s, Repairs(restamp_bursts=False, drop_held=True, cut_saturation=False,
+                                              drop_spikes=False, align_clocks=False))
+    mon = ExcitationMonitor()
+    step = 200
+    for k in range(0, len(s.t_mag_s), step):
+        mon.add(np.column_stack([s.t_gyro_s, s.gyro_rad_s])[k: k + step], np.column_stack([s.t_mag_s, s.mag])[k: k + step])
+    assert len(repaired.t_mag_s) < 0.8 * len(s.t_mag_s)
+    np.testing.assert_array_equal(mon.mag.view()[:, 0], repaired.t_mag_s)
+    np.testing.assert_array_equal(mon.mag.view()[:, 1:], repaired.mag)
+    np.testing.assert_array_equal(mon.gyro.view()[:, 1:], repaired.gyro_rad_s)
+    np.testing.assert_array_equal(mon.session().mag, s.mag)          # saved as received

@@ -36,7 +36,7 @@ def watch_command(
 
     ENOUGH shows once magyro observe's predicted one-sigma of every gyro parameter (on the data so far)
     is within its target. With ax ay az it also shows the poses held, the rank of the accelerometer's
-    12 parameters and the poses to hold next (magyro observe's accelerometer section). Stop with Ctrl-C; -o saves what was received. Exit 0 once the input ends or is
+    12 parameters, the poses to hold next and the gyro's rank with gravity beside the field (magyro observe's accelerometer section). Stop with Ctrl-C; -o saves what was received. Exit 0 once the input ends or is
     stopped (and the session, if asked, is written), 2 when the input is unusable.
     """
     from magyro.live.watch import watch

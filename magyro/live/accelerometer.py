@@ -66,9 +66,10 @@ class AccelerometerPart:
         self.next_t = float(acc[-1, 0]) + max(every, ACC_COST_FACTOR * cost)
 
 
-def accelerometer_json(acc, samples: int) -> dict:
+def accelerometer_json(acc, samples: int, gyro_rank_with_gravity: int | None = None) -> dict:
     """The accelerometer's part of a status line: poses held (s), rank, spread, the poses missing and observe's
-    advice."""
+    advice; and what gravity adds to the gyro (`gyro_rank_with_gravity`: the gyro's rank with gravity beside the
+    field, as observe's part 2 counts it; null until the accelerometer's part is computed)."""
     from magyro.observability.gravity import FACES, missing_poses
 
     def num(x):     # the status lines are strict JSON: a value that is not finite is null
@@ -78,4 +79,4 @@ def accelerometer_json(acc, samples: int) -> dict:
     return {"samples": samples, "rank": int(acc.rank), "condition": num(acc.condition), "spread": num(acc.spread),
             "poses_s": {f: num(acc.face_s[f]) for f in FACES}, "missing_poses": missing_poses(acc.face_s),
             "sphere_fraction": num(acc.sphere_fraction), "g_reference_m_s2": num(acc.g_reference_m_s2),
-            "advice": list(acc.advice)}
+            "advice": list(acc.advice), "gyro_rank_with_gravity": gyro_rank_with_gravity}

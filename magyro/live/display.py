@@ -19,7 +19,7 @@ import math
 import sys
 import time
 
-from magyro.live.monitor import Status
+from magyro.live.status import Status
 from magyro.live.prediction import GROUP_LABELS, GROUPS
 from magyro.text import significant
 
@@ -43,8 +43,14 @@ def plain_line(status: Status, counts=None) -> str:
     head = (f"t {status.t_s:7.1f} s  rank {status.rank:2d}/12  coverage {100 * status.coverage:3.0f}%  "
             f"std {predicted_text(status)}")
     tail = status.instruction
-    acc = "" if status.accelerometer is None else "  | " + accelerometer_text(status.accelerometer)
+    acc = "" if status.accelerometer is None else "  | " + accelerometer_text(status.accelerometer) + gravity_text(status)
     return f"magyro watch: {head}  | {tail}{acc}{skipped}"
+
+
+def gravity_text(status: Status) -> str:
+    """What gravity adds to the gyro: its rank with gravity beside the field (observe's part 2), or nothing yet."""
+    r = status.rank_with_gravity
+    return "" if r is None else f"  | gyro with gravity: rank {r}/12 (field alone {status.rank})"
 
 
 def accelerometer_text(acc, advice: bool = False) -> str:
@@ -77,7 +83,8 @@ class PlainDisplay:
         self._key = None
 
     def show(self, status: Status, counts=None) -> None:
-        key = (status.rank, status.field_source, status.enough, status.predicted is None, status.instruction[:12],
+        key = (status.rank, status.rank_with_gravity, status.field_source, status.enough, status.predicted is None,
+               status.instruction[:12],
                None if status.accelerometer is None else (status.accelerometer.rank, accelerometer_text(
                    status.accelerometer).split(";")[-1]))
         now = self.clock()
@@ -153,7 +160,8 @@ class RichDisplay:
                 parts.append(Text(status.detail, style="dim"))
         if status.accelerometer is not None:
             acc = status.accelerometer
-            parts.append(Text(accelerometer_text(acc), style="bold green" if not acc.advice else "bold magenta"))
+            parts.append(Text(accelerometer_text(acc) + gravity_text(status),
+                              style="bold green" if not acc.advice else "bold magenta"))
             if acc.advice:
                 parts.append(Text(" ".join(acc.advice), style="dim"))
         if counts is not None:

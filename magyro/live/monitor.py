@@ -11,22 +11,29 @@ The fast part, on every `update()` (several times a second), costs O(1) per new 
   is a fixed linear function (given A) of the 16 x 16 outer product of z = ytilde (x) q. The
   monitor keeps G = integral of z z^T dt (trapezoid over the gyro times, the magnetometer
   interpolated linearly there, holes left out: exactly `matrix.information_integral`'s rule) and
-  projects it with the current A. So when the ellipsoid fit improves, the whole integral is
+  projects it with the current A (`integral.RunningIntegral`, `integral.information_and_noise`). So when the ellipsoid fit improves, the whole integral is
   re-projected *exactly* onto the new field directions in O(1), and the sensor-noise matrix N
   of `gate.noise_matrix` comes from the same G (its blocks integral ytilde ytilde^T and
   integral q q^T). The rank is then counted exactly as the gate counts it
   (`gate.directional_rank`: an eigen-direction counts above 10x what noise alone puts in it).
+- **what the gate reads**: the integrals start where observe's gate starts, after the rest the recording opens
+  with (`integral.leading_rest`: the rest's end less 0.1 s, settled once the device has moved for a second), and
+  they read a sensor that repeats its readings without the repeats, as the recording check's repair leaves it
+  (`rows.SensorRows`). Otherwise the watch and observe disagreed just where a user looks: on BROAD 02 just after
+  its first rest the watch read rank 12 where observe reads 8, and on BROAD 07 (29 % of its magnetometer rows
+  repeated) 11-12 where observe reads 8.
 - **field directions before the magnetometer is calibrated**: the choice is a running ellipsoid
-  fit (`ellipsoid.fit_ellipsoid` on all readings so far, refreshed every `FIT_EVERY_S` seconds of
-  data once there are `MIN_FIT_SAMPLES` readings; the last good fit is kept when a later cloud
+  fit (`ellipsoid.fit_ellipsoid` on the readings from the gate's start on, refreshed every `FIT_EVERY_S` seconds
+  of data once there are `MIN_FIT_SAMPLES` readings; the last good fit is kept when a later cloud
   does not fit). Until the first fit succeeds (a static or one-axis cloud determines no
   ellipsoid), the field directions are observe's surrogate, the raw readings over their mean
   length (`ellipsoid.surrogate_field_directions`, with one common length instead of each
   reading's own, which keeps m affine in the reading and hence the exact re-projection above).
   The noise level in field units is observe's: per-sample std times mean(diag R), or over the
   mean reading length before a fit.
-- **noise levels**: white-noise stds from robust third differences (`front.noise.white_noise_std`)
-  of the last `NOISE_WINDOW` samples, refreshed with the fit.
+- **noise levels**: the gate's (`front.noise.noise_levels`): the leading rest's spread when it lasts 2 s, else the
+  differences' levels (`floor_level`, `third_difference_level`) of the last `NOISE_WINDOW` samples, refreshed
+  with the fit.
 - **coverage**: the equal-area sphere cells of the field directions (`observability.report.sphere_cell`),
   marked as readings arrive and recounted when the fit changes.
 - **the accelerometer** (when the stream carries `ax ay az`): `magyro.live.accelerometer`.
@@ -42,19 +49,22 @@ prediction meeting every target. benchmarks/bench_watch.py measures its cost.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from magyro.errors import InputError
 from magyro.front import ellipsoid
-from magyro.front.noise import white_noise_std
+from magyro.front.noise import floor_level, third_difference_level
 from magyro.front.rests import WINDOW_S, still_prefix_s
-from magyro.live.accelerometer import AccelerometerPart, accelerometer_json
+from magyro.live.accelerometer import AccelerometerPart
+from magyro.live.rows import Rows, SensorRows
+from magyro.live.integral import (RunningIntegral, field_reference, gravity_reference, information_and_noise,
+                                  leading_rest, rest_noise_levels)
 from magyro.observability.advice import direction_advice
 from magyro.live.prediction import GROUPS, Prediction, Predictor, meets, targets_dict
 from magyro.observability.gate import FLOOR_FACTOR, NUMERICAL_RTOL, directional_rank
-from magyro.session import HOLE_FACTOR, Session
+from magyro.live.status import END_REST_S, Status, enough_instruction  # noqa: F401  (END_REST_S: watch's)
+from magyro.session import Session
 
 FIT_EVERY_S = 2.0           # the ellipsoid and the noise levels are refreshed every this many seconds of data
 MIN_FIT_SAMPLES = 200       # magnetometer readings before the first fit is tried
@@ -63,99 +73,7 @@ DT_WINDOW = 4096            # gyro steps whose median sets the hole threshold (t
 MIN_NOISE_SAMPLES = 50      # per sensor, before the noise levels (and so any rank) are given
 EARLY_REFRESH_S = 0.5       # refresh interval while fewer than NOISE_WINDOW samples are in
 TURN_DEG = 90               # the turn the instruction asks for
-END_REST_S = 2.0            # after ENOUGH, the device is put down this long before the recording stops: the end
-                            # rest (front.rests) gives the bias check and, with the start rest, the noise levels
 AXES = "xyz"
-
-
-# --------------------------------------------------------------------------- growing arrays
-
-
-class _Rows:
-    """Rows (t, x, y, z) appended in blocks; `view()` is the filled part (views stay valid as it grows)."""
-
-    def __init__(self, capacity: int = 4096):
-        self.a = np.empty((capacity, 4))
-        self.n = 0
-
-    def extend(self, rows) -> None:
-        """Append rows; a row whose time does not increase (over all rows so far) is dropped."""
-        rows = np.asarray(rows, dtype=float).reshape(-1, 4)
-        last = self.a[self.n - 1, 0] if self.n else -np.inf
-        before = np.maximum.accumulate(np.concatenate([[last], rows[:-1, 0]])) if len(rows) else rows[:, 0]
-        rows = rows[rows[:, 0] > before]
-        need = self.n + len(rows)
-        if need > len(self.a):
-            bigger = np.empty((max(need, 2 * len(self.a)), 4))
-            bigger[: self.n] = self.a[: self.n]
-            self.a = bigger
-        self.a[self.n: need] = rows
-        self.n = need
-
-    def view(self) -> np.ndarray:
-        return self.a[: self.n]
-
-
-# --------------------------------------------------------------------------- the status
-
-
-@dataclass
-class Status:
-    """What the monitor knows after an `update()`."""
-
-    t_s: float                      # session time of the latest sample (the stream's own t, as saved)
-    gyro_samples: int
-    mag_samples: int
-    rank: int
-    noise_floor: float              # the largest eigenvalue of the noise matrix N
-    eigenvalues: np.ndarray         # normalised (largest 1), ascending
-    signal_to_noise: np.ndarray     # per eigen-direction, weakest first (rank: those above FLOOR_FACTOR)
-    condition: float
-    coverage: float                 # fraction of the SPHERE cells the field direction visited
-    cells_visited: int
-    field_source: str               # "ellipsoid fit" | "raw readings (no fit yet)"
-    instruction: str
-    detail: str
-    targets: dict
-    prediction: Prediction | None   # the latest finished prediction
-    predicting: bool                # a prediction is being computed
-    enough: bool                    # the latest prediction meets every target
-    enough_at_s: float | None       # session time of the data end of the first prediction that met them
-    still_s: float = 0.0            # how long the gyro has been still at the end of the data (s; 0 before ENOUGH)
-    accelerometer: object = None    # gravity.AccelerometerObservability (its 12 parameters) of the data so far, or None
-    acc_samples: int = 0
-
-    @property
-    def predicted(self) -> dict | None:
-        """{group: largest predicted one-sigma} or None."""
-        if self.prediction is None or self.prediction.std is None:
-            return None
-        return {g: float(np.max(v)) for g, v in self.prediction.std.items()}
-
-    def to_json_dict(self) -> dict:
-        p = self.prediction
-        return {
-            "t_s": round(self.t_s, 6), "rank": self.rank,
-            "noise_floor": self.noise_floor if math.isfinite(self.noise_floor) else None,
-            "coverage": round(self.coverage, 6), "cells_visited": self.cells_visited,
-            "gyro_samples": self.gyro_samples, "mag_samples": self.mag_samples,
-            "field": self.field_source,
-            "predicted_std": None if self.predicted is None else {
-                g: (v if math.isfinite(v) else None) for g, v in self.predicted.items()},
-            "predicted_at_s": None if p is None else round(p.t_s, 6),
-            "verdict": None if p is None else p.verdict, "targets": self.targets,
-            "enough": self.enough, "enough_at_s": self.enough_at_s, "still_s": round(self.still_s, 6),
-            "instruction": self.instruction,
-        } | ({} if self.accelerometer is None else {"accelerometer": accelerometer_json(self.accelerometer,
-                                                                                       self.acc_samples)})
-
-
-def enough_instruction(still_s: float) -> str:
-    """ENOUGH's instruction: rest the device first (`END_REST_S`), then stop."""
-    if still_s >= END_REST_S:
-        return f"ENOUGH, and still for {still_s:.1f} s: stop the recording now (Ctrl-C)"
-    return (f"ENOUGH: the motion meets every target; put the device down and leave it still for {END_REST_S:g} s, "
-            "then stop the recording (Ctrl-C)")
 
 
 # --------------------------------------------------------------------------- the monitor
@@ -178,14 +96,15 @@ class ExcitationMonitor:
         self.options = options
         self.mag_unit = mag_unit
         self.source = source
-        self.gyro = _Rows()
-        self.mag = _Rows()
-        self.acc = _Rows()
+        self._gyro_rows = SensorRows()
+        self._mag_rows = SensorRows()
+        self.acc = Rows()
         self.acc_part = AccelerometerPart()    # its 12 parameters on the data so far (magyro.live.accelerometer)
-        self.G = np.zeros((16, 16))            # integral of z z^T dt, z = ytilde (x) q
-        self._done = 0                         # gyro samples integrated (or left out before the first reading)
-        self._prev_t: float | None = None
-        self._prev_z: np.ndarray | None = None
+        self.start_s: float | None = None     # where the integrals start: after the leading rest (`_follow_leading_rest`)
+        self._start_fixed = False
+        self._rest_span: tuple[float, float] | None = None    # the leading rest so far (`leading_rest`)
+        self._rest_noise: tuple[float, float] | None = None   # (gyro, magnetometer) per-sample std from it
+        self._restart_integrals(0)
         self._typical_dt: float | None = None
         self._A = None                         # (3, 4): m = A [y_m; 1]
         self.fit: ellipsoid.EllipsoidFit | None = None
@@ -200,23 +119,46 @@ class ExcitationMonitor:
 
     # ------------------------------------------------------------------ input
     def add(self, gyro_rows=(), mag_rows=(), acc_rows=()) -> None:
-        if len(gyro_rows):
-            self.gyro.extend(gyro_rows)
-        if len(mag_rows):
-            self.mag.extend(mag_rows)
+        began = self._gyro_rows.extend(gyro_rows) if len(gyro_rows) else False
+        began |= self._mag_rows.extend(mag_rows) if len(mag_rows) else False
+        if began:
+            self._start_again()
         if len(acc_rows):
             self.acc.extend(acc_rows)
 
     @property
+    def gyro(self) -> Rows:
+        """The gyro rows as the solve reads them (`rows.SensorRows.kept`)."""
+        return self._gyro_rows.kept
+
+    @property
+    def mag(self) -> Rows:
+        """The magnetometer rows as the solve reads them (`rows.SensorRows.kept`)."""
+        return self._mag_rows.kept
+
+    def _start_again(self) -> None:
+        """A sensor was found holding its readings, and its rows were made again without the repeats: everything
+        read from them is read again at the next update (the leading rest, the noise levels, the fit, the
+        integrals, the coverage)."""
+        self.start_s, self._start_fixed, self._rest_span, self._rest_noise = None, False, None, None
+        self.fit, self._A, self._next_fit_t = None, None, -math.inf
+        self._restart_integrals(0)
+        self._cells[:] = False
+        self._cells_done = 0
+
+    @property
     def t_last(self) -> float | None:
-        lasts = [r.a[r.n - 1, 0] for r in (self.gyro, self.mag, self.acc) if r.n]
+        lasts = [r.a[r.n - 1, 0] for r in (self._gyro_rows.received, self._mag_rows.received, self.acc) if r.n]
         return max(lasts) if lasts else None
 
-    def session(self) -> Session | None:
-        """The data so far as a session (None until both sensors have a sample)."""
-        if not (self.gyro.n and self.mag.n):
+    def session(self, kept: bool = False) -> Session | None:
+        """The data so far as received (None until both sensors have a sample): what watch saves, and what
+        `magyro observe` (the prediction) reads, through its own recording check; `kept`: as the solve reads it
+        (`gyro`, `mag`)."""
+        gyro, mag = (self.gyro, self.mag) if kept else (self._gyro_rows.received, self._mag_rows.received)
+        if not (gyro.n and mag.n):
             return None
-        g, m = self.gyro.view().copy(), self.mag.view().copy()
+        g, m = gyro.view().copy(), mag.view().copy()
         metadata = {"gyro_unit": "rad/s", "mag_unit": self.mag_unit, "recorded_by": "magyro watch"}
         acc = {}
         if self.acc.n:
@@ -234,6 +176,7 @@ class ExcitationMonitor:
         if self.acc.n and self.acc_part.due(t_now, final):
             self.acc_part.refresh(self.acc.view(), self.gyro.view(), final, self.session, NOISE_WINDOW,
                                   EARLY_REFRESH_S, NOISE_WINDOW)
+        self._follow_leading_rest()
         if t_now is not None and (t_now >= self._next_fit_t or not self.noise_known):
             self._refresh_noise_and_fit()
             early = min(self.gyro.n, self.mag.n) < NOISE_WINDOW      # the noise levels settle: refresh them sooner
@@ -247,53 +190,68 @@ class ExcitationMonitor:
         self.status = status
         return status
 
-    def _integrate(self) -> None:
-        n_mag = self.mag.n
-        if n_mag == 0 or self._done >= self.gyro.n:
-            return
-        tm_all = self.mag.a[:n_mag, 0]
-        g = self.gyro.a[self._done: self.gyro.n]
-        stop = int(np.searchsorted(g[:, 0], tm_all[-1], side="right"))   # wait for the reading after them
-        block = g[:stop]
-        block = block[block[:, 0] >= tm_all[0]]                             # before the first reading: left out
-        self._done += stop
-        if not len(block):
-            return
-        t = block[:, 0]
-        lo = max(0, int(np.searchsorted(tm_all, t[0])) - 1)
-        tm, ym = tm_all[lo:], self.mag.a[lo:n_mag, 1:]
-        q = np.column_stack([np.interp(t, tm, ym[:, j]) for j in range(3)] + [np.ones(len(t))])
-        ytil = np.column_stack([block[:, 1:], np.ones(len(t))])
-        z = (ytil[:, :, None] * q[:, None, :]).reshape(len(t), 16)
-        if self._prev_t is not None:
-            t = np.concatenate([[self._prev_t], t])
-            z = np.vstack([self._prev_z, z])
-        self._prev_t, self._prev_z = float(t[-1]), z[-1].copy()
-        if len(t) < 2:
-            return
-        dt = np.diff(t)
-        self._update_typical_dt()
-        if self._typical_dt is not None:
-            dt = np.where(dt > HOLE_FACTOR * self._typical_dt, 0.0, dt)
-        w = 0.5 * dt
-        self.G += (z[:-1] * w[:, None]).T @ z[:-1] + (z[1:] * w[:, None]).T @ z[1:]
+    def _restart_integrals(self, first_gyro: int) -> None:
+        """Both integrals empty, to be taken from gyro row `first_gyro` on."""
+        self.field_integral = RunningIntegral(first_gyro)      # the field's (`integral.field_reference`)
+        self.gravity_integral = RunningIntegral(first_gyro)    # gravity's direction's (`integral.gravity_reference`)
 
-    def _update_typical_dt(self) -> None:
-        n = min(self._done, self.gyro.n)
+    def _follow_leading_rest(self) -> None:
+        """Start the integrals where `magyro observe`'s gate starts: after the rest the recording opens with
+        (`integral.leading_rest`), as the solve sees the session. While the device still lies there the start moves with
+        the rest's end (nothing is integrated: a rest adds nothing the solve uses); it is fixed once the device has
+        moved for MIN_REST_S. Integrated from the start instead, the rest's bias information made the watch read
+        rank 12 on BROAD 02's first 3.5 s (3 s of rest, then half a second of turning) where observe reads 8."""
+        if self._start_fixed or min(self.gyro.n, self.mag.n) < MIN_NOISE_SAMPLES:
+            return
+        lead = leading_rest(self.gyro.view(), self.mag.view())
+        if lead.start_s != self.start_s:
+            self.start_s = lead.start_s
+            self._restart_integrals(int(np.searchsorted(self.gyro.a[: self.gyro.n, 0], lead.start_s, side="left")))
+        self._start_fixed = lead.settled
+        if lead.span_s != self._rest_span:   # the rest grew: its noise levels (and the fit with them) again, now
+            self._rest_span = lead.span_s
+            self._rest_noise = rest_noise_levels(self.session(kept=True), lead.span_s, self.options)
+            self._next_fit_t = -math.inf
+
+    def _integrate(self) -> None:
+        if self.mag.n:
+            mag = self.mag.view()
+            self.field_integral.extend(self.gyro.view(), mag[:, 0], field_reference(mag[:, 0], mag[:, 1:]),
+                                       self._update_typical_dt)
+        if self.acc.n >= 2:
+            acc = self.acc.view()
+            self.gravity_integral.extend(self.gyro.view(), acc[:, 0],
+                                         gravity_reference(acc[:, 0], acc[:, 1:], self.g_reference_m_s2),
+                                         lambda done: self._typical_dt)
+
+    @property
+    def g_reference_m_s2(self) -> float:
+        """The accelerometer's reading of g: its part's (at the stillest samples so far), else the standard one."""
+        from magyro.options import STANDARD_GRAVITY_M_S2
+
+        acc = self.acc_part.gravity
+        return float(acc.g_reference_m_s2) if acc is not None else STANDARD_GRAVITY_M_S2
+
+    def _update_typical_dt(self, done: int) -> float | None:
+        """The gyro's step over the last DT_WINDOW rows taken in (`done`): a longer step is a hole."""
+        n = min(done, self.gyro.n)
         if n >= 3:
             t = self.gyro.a[max(0, n - DT_WINDOW): n, 0]
             self._typical_dt = float(np.median(np.diff(t)))
+        return self._typical_dt
 
     def _refresh_noise_and_fit(self) -> None:
-        if self.gyro.n >= MIN_NOISE_SAMPLES:
-            g = self.gyro.a[max(0, self.gyro.n - NOISE_WINDOW): self.gyro.n, 1:]
-            self.gyro_std = float(np.sqrt(np.mean(white_noise_std(g) ** 2)))
-        if self.mag.n >= MIN_NOISE_SAMPLES:
-            m = self.mag.a[max(0, self.mag.n - NOISE_WINDOW): self.mag.n, 1:]
-            self.mag_std = float(np.sqrt(np.mean(white_noise_std(m) ** 2)))
+        # the noise levels by the gate's rules (`front.noise.noise_levels`): the leading rest's spread, else the
+        # differences' levels of the latest NOISE_WINDOW samples
+        if self._rest_noise is not None:
+            self.gyro_std, self.mag_std = self._rest_noise
+        elif self.gyro.n >= MIN_NOISE_SAMPLES:
+            self.gyro_std = floor_level(self.gyro.a[max(0, self.gyro.n - NOISE_WINDOW): self.gyro.n, 1:])[0]
+        if self._rest_noise is None and self.mag.n >= MIN_NOISE_SAMPLES:
+            self.mag_std = third_difference_level(self.mag.a[max(0, self.mag.n - NOISE_WINDOW): self.mag.n, 1:])[0]
         if self.mag.n >= MIN_FIT_SAMPLES:
             try:
-                fit = ellipsoid.fit_ellipsoid(self.mag.view()[:, 1:], self.mag_std)
+                fit = ellipsoid.fit_ellipsoid(self._analysed_mag(), self.mag_std)
             except (ellipsoid.DegenerateCloud, InputError, np.linalg.LinAlgError):
                 fit = None
             if fit is not None and np.all(np.isfinite(fit.R)) and np.all(np.isfinite(fit.h)):
@@ -304,6 +262,13 @@ class ExcitationMonitor:
             rho = float(np.mean(np.linalg.norm(self.mag.view()[:, 1:], axis=1)))
             if rho > 0:
                 self._set_map(np.column_stack([np.eye(3) / rho, np.zeros(3)]))
+
+    def _analysed_mag(self) -> np.ndarray:
+        """The magnetometer readings the gate's ellipsoid is fitted to: from `start_s` on (all before it is known)."""
+        rows = self.mag.view()
+        if self.start_s is None:
+            return rows[:, 1:]
+        return rows[np.searchsorted(rows[:, 0], self.start_s, side="left"):, 1:]
 
     def _set_map(self, A: np.ndarray) -> None:
         self._A = A
@@ -331,20 +296,26 @@ class ExcitationMonitor:
     def matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """(integral of M^T M, noise matrix N), both 12 x 12, for the data integrated so far."""
         A = self._A if self._A is not None else np.column_stack([np.eye(3), np.zeros(3)])
-        G4 = self.G.reshape(4, 4, 4, 4)                      # [a, c, b, d]: ytilde_a q_c ytilde_b q_d
-        norm2 = np.einsum("acbd,cd->ab", G4, A.T @ A)          # integral ytilde_a ytilde_b |m|^2
-        mm = np.einsum("acbd,ic,jd->aibj", G4, A, A)          # integral ytilde_a ytilde_b m_i m_j
-        info = (np.einsum("ab,ij->aibj", norm2, np.eye(3)) - mm).reshape(12, 12)
-        Y = G4[:, 3, :, 3]                                    # integral ytilde ytilde^T
-        P = Y[3, 3] * np.eye(3) - A @ G4[3, :, 3, :] @ A.T    # integral (I - m m^T)
-        # |m| is 1 only up to the noise (and the fit): along the field, P can come out slightly negative where
-        # the gate's unit directions make it 0; clipped, so that no direction reads as noise-free
-        lam_p, V_p = np.linalg.eigh(0.5 * (P + P.T))
-        P = (V_p * np.maximum(lam_p, 0.0)) @ V_p.T
-        sm = self.mag_std_unit_field
-        N = (np.kron(np.diag([1.0, 1.0, 1.0, 0.0]), self.gyro_std ** 2 * P)
-             + np.kron(2.0 * sm ** 2 * Y, np.eye(3)))
-        return 0.5 * (info + info.T), 0.5 * (N + N.T)
+        return information_and_noise(self.field_integral.G, A, self.gyro_std, self.mag_std_unit_field)
+
+    def gravity_matrices(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(integral of M^T M, N) with gravity's direction as the reference, or None before the accelerometer's
+        part: its direction's noise is the white noise and the hand's (`gravity.observe_accelerometer`'s)."""
+        acc = self.acc_part.gravity
+        if acc is None or not np.any(self.gravity_integral.G):
+            return None
+        sigma_u = math.hypot(acc.white_noise_m_s2, acc.hand_m_s2) / acc.g_reference_m_s2
+        return information_and_noise(self.gravity_integral.G, np.column_stack([np.eye(3), np.zeros(3)]), self.gyro_std, sigma_u)
+
+    def rank_with_gravity(self, info: np.ndarray, N: np.ndarray) -> int | None:
+        """The gyro's rank with gravity beside the field (`gravity.combined_rank`), or None without it."""
+        from magyro.observability.gravity import combined_rank
+
+        gravity = self.gravity_matrices()
+        if gravity is None or not self.noise_known:
+            return None
+        lam, V = np.linalg.eigh(info + gravity[0])
+        return combined_rank(lam, V, (info, N), gravity)
 
     @property
     def noise_known(self) -> bool:
@@ -378,6 +349,7 @@ class ExcitationMonitor:
             detail=detail, targets=targets_dict(self.targets), prediction=p,
             predicting=bool(self.predictor is not None and self.predictor.busy), enough=enough,
             enough_at_s=self.enough_at_s, still_s=still_s, accelerometer=self.acc_part.gravity,
+            rank_with_gravity=self.rank_with_gravity(info, N),
             acc_samples=self.acc.n)
 
     def still_at_end_s(self) -> float:

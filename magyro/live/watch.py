@@ -243,9 +243,9 @@ def summary(reason: str, monitor, status, counts, saved: bool, output) -> str:
                                                           for g, v in p.items()))
         parts.append(enough_summary(monitor.enough_at_s, status))
         if status.accelerometer is not None:
-            from magyro.live.display import accelerometer_text
+            from magyro.live.display import accelerometer_text, gravity_text
 
-            parts.append(accelerometer_text(status.accelerometer, advice=True))
+            parts.append(accelerometer_text(status.accelerometer, advice=True) + gravity_text(status).replace("  |", ";"))
     if output is not None:
         parts.append(f"session written to {output}" if saved else "nothing to save (no gyro or no magnetometer sample)")
     return "; ".join(parts)
