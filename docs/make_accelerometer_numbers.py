@@ -4,6 +4,7 @@
     python benchmarks/accelerometer.py sim --problem phone-module-acc --seeds 20 --out docs/numbers/accelerometer-phone-module-acc.json
     python benchmarks/accelerometer.py real --out docs/numbers/accelerometer-broad-02.json
     python benchmarks/accelerometer_real.py --out docs/numbers/accelerometer-real.json
+    python benchmarks/accelerometer_hand_models.py --out docs/numbers/accelerometer-hand-models.json
     python docs/make_accelerometer_numbers.py [--check] [PAGE]      (default: docs/accelerometer.md)
 
 The observe block is `magyro observe data/broad-02.parquet`'s accelerometer section, made afresh (no record).
@@ -24,6 +25,7 @@ COMMAND = "python docs/make_accelerometer_numbers.py"
 SIM_RECORDS = {"acc-sim-paper": "accelerometer-paper-table1-acc", "acc-sim-phone": "accelerometer-phone-module-acc"}
 REAL_RECORD = "accelerometer-broad-02"
 EVERY_REAL_RECORD = "accelerometer-real"
+HAND_MODELS_RECORD = "accelerometer-hand-models"
 
 
 def sim_table(r: dict) -> str:
@@ -193,6 +195,24 @@ def every_real_summary(r: dict) -> str:
     return doc_blocks.notes(lines)
 
 
+def hand_models_table(r: dict) -> str:
+    """The hand models' study (benchmarks/accelerometer_hand_models.py): one row per model and problem."""
+    rows = []
+    for study in r["studies"]:
+        for row in study["rows"]:
+            knobs = ", ".join(f"{k} {v:g}" for k, v in row["knobs"].items())
+            rows.append([study["problem"], row["model"] + (f" ({knobs})" if knobs else ""),
+                         f"{row['acc_over_crlb_median']:.2f}", f"{row['acc_over_crlb_max']:.2f}",
+                         ", ".join(f"{v:.0f}" for v in row["K_a_diag_std_ppm"]), f"{row['gyro_with_over_without_max']:.2f}",
+                         "%.2f-%.2f" % tuple(row["acc_model_over_actual"]), "%.2f-%.2f" % tuple(row["gyro_model_over_actual"])])
+    head = (f"`{r['provenance']['command']}` ({r['provenance']['date']}, {r['provenance']['commit']}), seed 0 of each "
+            "problem; the bound's K_a diagonal std: " + "; ".join(
+                f"{s['problem']} {', '.join(f'{v:.0f}' for v in s['crlb_K_a_diag_ppm'])} ppm" for s in r["studies"]) + ":\n\n")
+    return head + table(["problem", "the hand as the estimator models it", "acc std/CRLB, median", "largest",
+                         "K_a diagonal std, ppm", "gyro std with/without, largest", "acc model std/actual",
+                         "gyro model std/actual"], rows, left=(0, 1))
+
+
 def observe_block() -> str:
     """`magyro observe data/broad-02.parquet`'s accelerometer section (computed: a second, no solve)."""
     import magyro
@@ -210,6 +230,7 @@ def blocks() -> dict[str, str]:
     every = read_record(EVERY_REAL_RECORD)
     out["acc-real"] = every_real_table(every)
     out["acc-real-summary"] = every_real_summary(every)
+    out["acc-hand-models"] = hand_models_table(read_record(HAND_MODELS_RECORD))
     return out
 
 
