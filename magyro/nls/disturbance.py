@@ -181,35 +181,36 @@ class ThetaRows:
     """d r / d theta of the magnetometer residuals of a slice of intervals, (m, 3 stride, n_theta), from the
     Jacobian kernel evaluated on that slice alone: mapped over the slice (theta and g shared), evaluated through
     buffers on numpy, J's theta columns. Mapping a kernel with sparse outputs and DM arguments cost 3-4x more (0.12
-    against 0.034 s for 833 intervals)."""
+    against 0.034 s for 833 intervals). With the accelerometer the kernel is the one without it
+    (`JointProblem.magnetometer_jacobian_kernel`): the magnetometer rows are the same, and none of the accelerometer's
+    work is done for them."""
 
     def __init__(self, problem: JointProblem, x, p):
         self.problem = problem
-        self.x_theta = np.asarray(x[: problem.n_theta], dtype=float)
-        self.g_values = problem.globals_of(p).astype(float)
-        self.theta = ca.DM(self.x_theta)
-        self.g = ca.DM(self.g_values)
+        self.rows = problem.magnetometer_jacobian_kernel   # J^T dense: its column-major values are J's rows
+        self.n_theta = self.rows.size_out(0)[0] - 2 * problem.B   # its theta: a prefix of the problem's
+        self.x_theta = np.asarray(x[: self.n_theta], dtype=float)
+        self.g_values = problem.globals_of(p)[: self.rows.nnz_in(3)].astype(float)   # its globals: a prefix
         self.states = np.vstack([np.zeros(problem.B), x[problem.n_theta :].reshape(-1, problem.B)])   # nodes 0..n_int
-        self.data = problem.data_of(p)
-        self.rows = problem.jacobian_kernel   # J^T dense: its column-major values are J's rows
+        self.data = problem.data_of(p)[:, : self.rows.nnz_in(4)]   # its data: a prefix of each interval's
         self.maps = {}
 
     def __call__(self, n: slice) -> np.ndarray:
-        """(m, 3 stride, n_theta): the magnetometer residuals' rows of each interval, ROWS_MAP intervals per
-        evaluation of the map (a map's construction grows faster than its length: 27 ms for 833 intervals, 6 ms for
-        256; one map of ROWS_MAP serves every piece)."""
+        """(m, 3 stride, n_theta): the magnetometer residuals' rows of each interval (zero in the accelerometer's
+        columns), ROWS_MAP intervals per evaluation of the map (a map's construction grows faster than its length:
+        27 ms for 833 intervals, 6 ms for 256; one map of ROWS_MAP serves every piece)."""
         problem, m = self.problem, n.stop - n.start
-        width = self.rows.size_out(0)[0]   # n_theta + 2 B: J's columns
-        rows = np.empty((m, problem.n_res_per_interval, problem.n_theta))
+        width, residuals = self.rows.size_out(0)   # J's columns (its theta and 2 B), its residuals per interval
+        mag = 3 * problem.grid.stride
+        rows = np.zeros((m, mag, problem.n_theta))
         for a in range(n.start, n.stop, ROWS_MAP):
             b = min(a + ROWS_MAP, n.stop)
             if b - a not in self.maps:
                 self.maps[b - a] = self.rows.map(b - a, [True, False, False, True, False], [False], {})
-            rows[a - n.start : b - n.start] = evaluate(
+            rows[a - n.start : b - n.start, :, : self.n_theta] = evaluate(
                 self.maps[b - a], self.x_theta, self.states[a:b].ravel(), self.states[a + 1 : b + 1].ravel(),
-                self.g_values, self.data[a:b].ravel())[0].reshape(b - a, problem.n_res_per_interval, width)[
-                    :, :, : problem.n_theta]
-        return rows[:, : 3 * problem.grid.stride]
+                self.g_values, self.data[a:b].ravel())[0].reshape(b - a, residuals, width)[:, :mag, : self.n_theta]
+        return rows
 
 
 class ExponentialDoubleSum:

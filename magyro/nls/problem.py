@@ -167,6 +167,17 @@ class JointProblem:
         g = self.grid
         return accelerometer_jacobian(g.stride, g.substeps, self.n_theta, self.walk, self.compiled)
 
+    @cached_property
+    def magnetometer_jacobian_kernel(self) -> ca.Function:
+        """The Jacobian kernel of this shape without the accelerometer (this problem's own without it): its theta, its
+        globals and each interval's data are prefixes of this problem's (interval.data_layout and GLOBAL_LAYOUT append
+        the accelerometer's), so its magnetometer and gyro rows are this problem's, without the accelerometer's work
+        (the room's sandwich needs the magnetometer's rows alone: nls/disturbance.py)."""
+        if not self.accelerometer:
+            return self.jacobian_kernel
+        g = self.grid
+        return kernel_set(g.stride, g.substeps, self.n_theta - N_ACC_THETA, self.walk, self.compiled)[2]
+
     @property
     def residual_function(self) -> ca.Function:
         return self._residual_graph[0]
