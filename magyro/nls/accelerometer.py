@@ -300,22 +300,25 @@ def white_variance(start: AccelerometerStart) -> np.ndarray:
 
 
 def specific_force_excess(start: AccelerometerStart, A: np.ndarray, b: np.ndarray, K: np.ndarray | None = None,
-                          eps: np.ndarray | None = None, lever_m: np.ndarray | None = None) -> np.ndarray:
+                          eps: np.ndarray | None = None, lever_m: np.ndarray | None = None,
+                          sub_steps: tuple | None = None) -> np.ndarray:
     """(n_int,) |mean of A y + b - the lever arm's acceleration| - g over each interval (0 where it has no sample):
     the hand's acceleration along gravity, which no attitude can explain away (a tilt turns the specific force, it
     does not change its size). The lever arm's (turning about a point `lever_m` away, the gyro calibrated by K,
-    eps) is the model's, not the hand's."""
+    eps) is the model's, not the hand's; `sub_steps` (dt, gyro_a, gyro_b) as `Grid.sub_steps` gives them, made
+    from the grid when not given."""
     f = np.einsum("ij,ksj->ksi", A, start.y) + b
     if lever_m is not None:
-        f = f - lever_acceleration(start.grid, K, eps, lever_m)
+        f = f - lever_acceleration(start.grid.sub_steps() if sub_steps is None else sub_steps, K, eps, lever_m)
     mean_f = np.einsum("ks,ksi->ki", start.share, f)
     return np.where(start.count > 0, np.linalg.norm(mean_f, axis=1) - start.g_m_s2, 0.0)
 
 
-def lever_acceleration(grid: Grid, K: np.ndarray, eps: np.ndarray, lever_m: np.ndarray) -> np.ndarray:
+def lever_acceleration(sub_steps: tuple, K: np.ndarray, eps: np.ndarray, lever_m: np.ndarray) -> np.ndarray:
     """(n_int, stride, 3) alpha x r + w x (w x r) at every segment start, as the kernel has it: w the calibrated rate
-    there, alpha the segment's mean angular acceleration."""
-    dt, ya, yb = grid.sub_steps()
+    there, alpha the segment's mean angular acceleration, from the sub-steps (dt, gyro_a, gyro_b) of
+    `Grid.sub_steps`."""
+    dt, ya, yb = sub_steps
     wa = ya @ K.T + eps                                            # (n_int, stride, L, 3)
     wb = yb @ K.T + eps
     seg_s = dt.sum(axis=2)
