@@ -16,6 +16,7 @@ from magyro.front.prepare import Prepared
 from magyro.nls.disturbance import disturbance_covariance
 from magyro.nls.method import NLS
 from magyro.options import Options
+from magyro.nls.interval import N_ACC_THETA
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.reduction import (  # noqa: F401  (the attitude elimination; its names kept importable from here)
     Reduced, attitude_covariance_blocks, block_tridiagonal_inverse_diagonal, gauss_newton_decrement, reduce_hessian,
@@ -51,8 +52,8 @@ def propagation_jacobian(problem: JointProblem, theta, g, C_ref) -> np.ndarray:
 
     step = 1e-6
     n = problem.n_theta
-    J = np.empty((len(f(theta)), n))
-    for i in range(n):
+    J = np.zeros((len(f(theta)), n))   # the accelerometer's corrections move none of it: their columns are zero
+    for i in range(n - (N_ACC_THETA if problem.accelerometer else 0)):
         e = np.zeros(n)
         e[i] = step
         J[:, i] = (f(theta + e) - f(theta - e)) / (2 * step)
