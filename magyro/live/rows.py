@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from magyro.front.recording import HELD_MIN_FRACTION, HELD_MIN_ROWS
+from magyro.front.repairs import held_after
 
 
 class Rows:
@@ -67,8 +68,7 @@ class SensorRows:
         if not self.holding:
             return False
         if not was:
-            every = np.zeros(n, dtype=bool)
-            every[1:] = np.all(values[1:] == values[:-1], axis=1)
+            every = held_after(values, np.ones(n, dtype=bool))   # the repair's own rule (front.repairs)
             self.kept = Rows()
             self.kept.extend(self.received.a[:n][~every])
             return True

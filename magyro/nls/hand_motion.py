@@ -20,16 +20,15 @@ below I^-1.
 """
 from __future__ import annotations
 
-import casadi as ca
 import numpy as np
 
 from magyro import so3
 from magyro.nls.accelerometer import hand_spectrum
 from magyro.nls.interval import data_layout
-from magyro.nls.problem import JointProblem, evaluate
+from magyro.nls.on_numpy import MapOnNumpy
+from magyro.nls.problem import JointProblem
 from magyro.nls.reduction import Reduced
 
-CHUNK = 1024   # intervals per piece of the sensitivities
 
 
 def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, reduced: Reduced, information: np.ndarray,
@@ -42,7 +41,7 @@ def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, re
     if not np.any(hand_std_m_s2 > 0) and not np.any(weights_hand_std_m_s2 > 0):
         return np.zeros_like(information)
     info_inv = np.linalg.inv(information)
-    sensitivities = np.concatenate(list(hand_sensitivities(problem, x, p, reduced, np.ones(problem.n_int))))
+    sensitivities = hand_sensitivities(problem, x, p, reduced, np.ones(problem.n_int))
     U = sensitivities * hand_std_m_s2[:, None, None]                                       # (n_int, n_theta, 3)
     counted = sensitivities * weights_hand_std_m_s2[:, None, None]
     n, L = len(U), len(correlation) - 1
@@ -63,9 +62,10 @@ def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, re
     return info_inv @ total @ info_inv - info_inv
 
 
-def hand_sensitivities(problem: JointProblem, x, p, reduced: Reduced, hand_std_m_s2: np.ndarray):
-    """Pieces, in time order, of U_j (m, n_theta, 3) for every interval (zero where it carries no accelerometer
-    mean or the hand is still), from the accelerometer's own Jacobian kernel (`accelerometer_jacobians`)."""
+def hand_sensitivities(problem: JointProblem, x, p, reduced: Reduced, hand_std_m_s2: np.ndarray) -> np.ndarray:
+    """U_j (n_int, n_theta, 3) for every interval (zero where it carries no accelerometer mean or the hand is still),
+    from the accelerometer's own Jacobian kernel evaluated over every interval as the solve's kernels are
+    (`on_numpy.MapOnNumpy`: through buffers, MAP_CHUNK intervals a piece), its sparse outputs put in place."""
     B, G = problem.B, problem.n_theta
     W = np.concatenate([np.zeros((1, B, G)), reduced.Dinv_Hpt.reshape(problem.n_int, B, -1)[:-1]])
     theta, g = np.asarray(x[:G], dtype=float), problem.globals_of(p).astype(float)
@@ -73,40 +73,20 @@ def hand_sensitivities(problem: JointProblem, x, p, reduced: Reduced, hand_std_m
     data = problem.data_of(p)
     weight = data[:, data_offset(problem, "w_acc")]
     readout = np.linalg.inv(np.array(problem.accelerometer_function(theta, g)[0]))   # M: the hand reads as M C_i^m a
-    jacobians = AccelerometerJacobians(problem.accelerometer_jacobian, G, B)
-    for a in range(0, problem.n_int, CHUNK):
-        n = slice(a, min(a + CHUNK, problem.n_int))
-        J_theta, J_node = jacobians(theta, states[n], states[a + 1 : n.stop + 1], g, data[n])
+    kernel = problem.accelerometer_jacobian
+    places = [kernel.sparsity_out(i).get_triplet() for i in range(2)]          # (rows, columns) of each nonzero
+    U = np.zeros((problem.n_int, G, 3))
+
+    def piece(a: int, b: int, values) -> None:
+        J_theta, J_node = np.zeros((b - a, 3, G)), np.zeros((b - a, 3, B))
+        for dense, v, (rows, columns) in zip((J_theta, J_node), values, places):
+            dense[:, rows, columns] = v.reshape(b - a, len(rows))              # each interval's nonzeros, in order
+        n = slice(a, b)
         J_profiled = J_theta - J_node @ W[n]
         L = (weight[n] * hand_std_m_s2[n])[:, None, None] * (readout @ attitude_i_to_m(data[n], states[n]))  # (m, 3, 3)
-        yield np.swapaxes(J_profiled, -1, -2) @ L
-
-
-class AccelerometerJacobians:
-    """d r / d theta (m, 3, G) and d r / d s_k (m, 3, B) of m intervals' accelerometer means: the kernel mapped over
-    MAP_INTERVALS of them at a time (theta and g shared) and evaluated through buffers on numpy (`problem.evaluate`),
-    its sparse outputs put in place. A map called with DM arguments spent 29 ms of BROAD 02's 0.07 s here making DMs
-    of the intervals' data, and a map's construction grows faster than its length (1024 intervals 15 ms, 256 2 ms)."""
-
-    MAP_INTERVALS = 256
-
-    def __init__(self, kernel: ca.Function, G: int, B: int):
-        self.kernel, self.maps = kernel, {}
-        self.places = [kernel.sparsity_out(i).get_triplet() for i in range(2)]   # (rows, columns) of each nonzero
-        self.shapes = [(3, G), (3, B)]
-
-    def __call__(self, theta, states_k, states_k1, g, data) -> tuple[np.ndarray, np.ndarray]:
-        m = len(data)
-        out = [np.zeros((m, *shape)) for shape in self.shapes]
-        for a in range(0, m, self.MAP_INTERVALS):
-            b = min(a + self.MAP_INTERVALS, m)
-            if b - a not in self.maps:
-                self.maps[b - a] = self.kernel.map(b - a, [True, False, False, True, False], [False, False], {})
-            values = evaluate(self.maps[b - a], theta, states_k[a:b].ravel(), states_k1[a:b].ravel(), g,
-                              data[a:b].ravel())
-            for dense, v, (rows, columns) in zip(out, values, self.places):
-                dense[a:b, rows, columns] = v.reshape(b - a, len(rows))   # each interval's nonzeros, in order
-        return out[0], out[1]
+        U[n] = np.swapaxes(J_profiled, -1, -2) @ L
+    MapOnNumpy(problem, kernel, pieces=True)(x, p, piece)
+    return U
 
 
 def data_offset(problem: JointProblem, name: str) -> int:
