@@ -1,13 +1,13 @@
 """The accelerometer in the joint least squares (issue 26): the targets it is measured against, one table each.
 
     python benchmarks/accelerometer.py real [--session data/broad-02.parquet] [--out docs/numbers/accelerometer-broad-02.json]
-    python benchmarks/accelerometer.py sim [--problem paper-table1-acc] [--seeds 20] [--jobs 2] [--out RECORD]
+    python benchmarks/accelerometer.py sim [--problem paper-table1-acc] [--still] [--seeds 20] [--jobs 2] [--out RECORD]
 
 `real`: the calibrated accelerometer's |f| at the rests against g (each rest of the session, found by the rests'
 own rule), the split halves (each half solved alone with --force; RMS z of the accelerometer's 12 parameters and of
 the gyro's 12), the gyro's std with the accelerometer against without, and the solve's CPU time with and without
 it (the median of 3 interleaved runs each, after one run that compiles and caches the kernels).
-`sim`: per noise seed (each seed draws another sway of the hand) the accelerometer's and the gyro's errors against
+`sim`: per noise seed (each seed draws another sway of the hand; `--still`: no hand translation at all) the accelerometer's and the gyro's errors against
 the truth in reported std, the actual spread over the seeds against the mean reported std (reported/actual), and
 the gyro's std with the accelerometer against without it on the same session, and the Cramer-Rao bound at seed 0's
 session (magyro.studies.crlb_accelerometer: the hand counted as noise of its known ensemble; the white-noise bound,
@@ -19,6 +19,7 @@ docs/accelerometer.md is rendered from (docs/make_accelerometer_numbers.py).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import time
@@ -105,11 +106,13 @@ def one_seed(args):
     return calibrate(session, Options(accelerometer=True)), calibrate(session, Options(accelerometer=False)), truth
 
 
-def sim(problem: str, seeds: int, jobs: int) -> dict:
+def sim(problem: str, seeds: int, jobs: int, still: bool = False) -> dict:
     from magyro.result.calibration import Calibration
     from magyro.studies.scenario import load_problem
 
     prob = load_problem(problem)
+    if still:   # turned about itself: no hand translation (a gimbal, a careful hand)
+        prob = dataclasses.replace(prob, accelerometer=dataclasses.replace(prob.accelerometer, hand_translation_m=0.0))
     with ProcessPoolExecutor(jobs) as pool:
         runs = list(pool.map(one_seed, [(prob, seed) for seed in range(seeds)]))
     t = runs[0][2]["accelerometer"]
@@ -127,7 +130,7 @@ def sim(problem: str, seeds: int, jobs: int) -> dict:
     bound = crlb(prob)
     actual, gactual = est.std(axis=0, ddof=1), gest.std(axis=0, ddof=1)
     gcrlb = np.array([gyro_stds(SimpleNamespace(std=bound.std))[k] for k in tv])
-    return {"problem": problem, "seeds": seeds, "names": ACC_NAMES,
+    return {"problem": problem, "still": still, "seeds": seeds, "names": ACC_NAMES,
             "mean_error": (est - truth_acc).mean(axis=0).tolist(), "actual": est.std(axis=0, ddof=1).tolist(),
             "reported": std.mean(axis=0).tolist(),
             "max_abs_z": np.max(np.abs((est - truth_acc) / std), axis=0).tolist(),
@@ -172,6 +175,7 @@ def main(argv=None) -> None:
     ap.add_argument("--problem", default="paper-table1-acc")
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--still", action="store_true", help="sim: the problem's hand translation set to 0 (turned about itself)")
     ap.add_argument("--out", help="write the record here (docs/numbers/accelerometer-*.json)")
     a = ap.parse_args(argv)
     command = "python benchmarks/accelerometer.py " + " ".join(argv or [])
@@ -180,7 +184,7 @@ def main(argv=None) -> None:
         print_real(record)
         record["provenance"] = provenance(command)
     else:
-        record = sim(a.problem, a.seeds, a.jobs)
+        record = sim(a.problem, a.seeds, a.jobs, a.still)
         print_sim(record)
         record["provenance"] = measured_at(command)
     if a.out:

@@ -72,6 +72,19 @@ def test_a_still_hand_gives_the_white_bound(problem, session):
     assert np.array_equal(b.covariance, b.white_covariance)
 
 
+@pytest.mark.heavy   # a solve and the bound of a still hand: 45 s, in .ci/run's second pass
+def test_a_device_turned_without_moving_reaches_the_white_bound(problem):
+    """Turned about itself (no hand translation), the accelerometer's interval means carry the white noise alone and
+    the solve weights them by it (`accelerometer.hand_detected`): its reported std is the bound. Counting the
+    attitude's own small error as hand had kept the weights at a third of the white noise's and the std at
+    1.2-1.5x the bound (80 seeds: the actual spread too, 1.25-1.55x)."""
+    still = dataclasses.replace(problem, accelerometer=dataclasses.replace(problem.accelerometer, hand_translation_m=0.0))
+    session = simulate(still, 0)[0]
+    bound = ca_.accelerometer_cramer_rao(still, session, draws=5)
+    reported = acc_std(calibrate(session, Options(accelerometer=True)).accelerometer)
+    assert reported / bound.white_accelerometer_std == pytest.approx(np.ones(12), abs=0.05)
+
+
 def test_the_hand_only_raises_the_bound(bound):
     """Sigma_hand is positive semi-definite, so the information with it is no larger: every std at least the white
     one (to rounding)."""

@@ -43,6 +43,7 @@ from magyro.session import HOLE_FACTOR
 HAND_WINDOW_S = 1.0          # the weights: the hand's acceleration variance is measured over this window
 HAND_MAX_LAG_S = 30.0        # its autocorrelation is measured up to this lag (a hand's slowest sway)
 HAND_SIZE_WINDOW_S = 30.0    # the std: its variance is measured over as long (`hand_motion`)
+HAND_OF_WHITE = 1.0          # the weights count a hand whose variance along gravity is above this many white noises
 HAND_REACH_M = 0.5           # the device's position stays within this std (m) of where it is turned (`reach_cap`)
 
 
@@ -199,6 +200,30 @@ def hand_weights(e: np.ndarray, start: AccelerometerStart, correlated: float = 1
     white = white_variance(start)
     local = local_mean_square(np.sqrt(np.sum(e**2, axis=1) / 3.0), used, intervals_in(HAND_WINDOW_S, start))
     return np.where(used, 1.0 / np.sqrt(white + correlated * np.maximum(local - white, 0.0)), 0.0)
+
+
+def still_hand_weights(start: AccelerometerStart) -> np.ndarray:
+    """(n_int,) the interval means' weights where no hand moves the device: the white noise's alone."""
+    return np.where(start.count > 0, 1.0 / np.sqrt(white_variance(start)), 0.0)
+
+
+def hand_detected(excess: np.ndarray, start: AccelerometerStart) -> bool:
+    """Does a hand accelerate the device enough to count in the weights: is the variance of the specific force's
+    size (`specific_force_excess`, less its mean: the hand's acceleration along gravity, which no attitude absorbs)
+    over the whole record more than the white noise of an interval mean plus as much again (HAND_OF_WHITE)?
+
+    The size, not the residuals: an attitude still wrong by a few hundredths of a degree (the magnetometer's and the
+    gyro's noise) leaves g times that in the residuals, and the solve pulls it out only as far as the
+    accelerometer's weights let it. Counted as hand (10-30 times, `correlation_factor`), it kept those weights at a
+    third of the white noise's after three passes where nothing moved the device (paper-table1-acc without a hand,
+    80 seeds: the accelerometer's std 1.25-1.55x its Cramer-Rao bound). The size's variance is 1.3-1.9 times the
+    white noise's there (the fit's own error in A and b, shrinking pass by pass), 11-12 times with the simulated
+    5 cm hand, thousands of times on BROAD. A hand below the bound is still counted in the std (`hand_motion`)."""
+    used = start.count > 0
+    if used.sum() < 2:
+        return False
+    e = excess[used] - np.mean(excess[used])
+    return float(np.mean(e**2)) > (1.0 + HAND_OF_WHITE) * float(np.mean(white_variance(start)[used]))
 
 
 def solved_hand_weights(e: np.ndarray, start: AccelerometerStart) -> np.ndarray:

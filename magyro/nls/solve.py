@@ -22,7 +22,8 @@ from magyro.nls.grid import STRIDES, Grid, build_grid, typical_segment_s
 from magyro.nls.method import NLS
 from magyro.options import Options
 from magyro.observability.gate import unexcited_directions
-from magyro.nls.accelerometer import accelerometer_start, solved_hand_weights, specific_force_excess
+from magyro.nls.accelerometer import (accelerometer_start, hand_detected, solved_hand_weights, specific_force_excess,
+                                      still_hand_weights)
 from magyro.nls.interval import N_GLOBAL, TIME_OFFSET_SCALE_S, data_layout
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.errors import InputError, ObservabilityError
@@ -246,9 +247,14 @@ def solved_accelerometer_residuals(problem: JointProblem, r: np.ndarray, weight:
     return np.where(used[:, None], accelerometer_residuals(problem, r) / np.where(used, weight, 1.0)[:, None], 0.0)
 
 
-def accelerometer_reweighted(problem: JointProblem, lin: Linearisation, r: np.ndarray, weight: np.ndarray):
-    """(the accelerometer's interval weights measured from the solved residuals r, whether they moved)."""
-    new = solved_hand_weights(solved_accelerometer_residuals(problem, r, weight), lin.accelerometer)
+def accelerometer_reweighted(problem: JointProblem, lin: Linearisation, x: np.ndarray, p: np.ndarray, r: np.ndarray,
+                             weight: np.ndarray):
+    """(the accelerometer's interval weights measured at the solution x, p: the white noise's alone where the
+    specific force's size shows no hand, else from the solved residuals r; whether they moved)."""
+    if hand_detected(solved_excess(problem, lin.accelerometer, x, p), lin.accelerometer):
+        new = solved_hand_weights(solved_accelerometer_residuals(problem, r, weight), lin.accelerometer)
+    else:
+        new = still_hand_weights(lin.accelerometer)
     ok = (weight > 0) & (new > 0)
     moved = float(np.sqrt(np.mean(np.log(new[ok] / weight[ok]) ** 2))) if ok.any() else 0.0
     return new, moved > ACC_REWEIGHT_TOLERANCE
@@ -309,7 +315,7 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
                 gyro_factor, mag_factor = 1.0, (1.0 if r is None else magnetometer_noise_factor(problem, r))
                 reweight = abs(mag_factor - 1.0) > NOISE_RESCALE_TOLERANCE
             moved = abs(tau - tau0) * max(abs(tau), abs(tau0)) > TIME_OFFSET_RELOOK_S2
-            new_acc, acc_moved = (accelerometer_reweighted(problem, lin, r, acc_weight) if problem.accelerometer
+            new_acc, acc_moved = (accelerometer_reweighted(problem, lin, x, p, r, acc_weight) if problem.accelerometer
                                   else (None, False))
             if n_pass == max_passes or not (moved or reweight or acc_moved):
                 return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, r, density, step, not reweight,
