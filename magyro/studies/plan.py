@@ -197,8 +197,10 @@ def make_plan(duration_s: float, gyro_noise_deg_s_sqrt_hz: float | None = None, 
     if base.accelerometer is not None:
         step("planning: the accelerometer's six poses")
         c0 = time.process_time()
+        others = [(f"the template {tpl.describe()}", tpl.moves(n_moves)) for tpl in finalists if tpl is not best_tpl]
         best, first_rest_s, best_score, pose_how = hold_poses(
-            best, best_score, lambda m, first: evaluate(m, poses, first)[0], base, duration_s, max_rate_deg_s)
+            best, best_score, lambda m, first: evaluate(m, poses, first)[0], base, duration_s, max_rate_deg_s,
+            others=others)
         acc_cpu_s = time.process_time() - c0
     stds = evaluate(best, poses, first_rest_s)[1]
     turns = layout(best, duration_s, max_rate_deg_s, first_rest_s)
@@ -247,7 +249,7 @@ def accelerometer_part(problem: Scenario, reference: Comparison, comparisons: li
     return PlanAccelerometer(rows(bound.accelerometer_std), rows(bound.white_accelerometer_std),
                              rows(bound.weighted_accelerometer_std), others[0],
                              reference.error, others[1:], held_s, cone_s, pose_how, searched_worst_ratio,
-                             pose_cpu_s + time.process_time() - c0)
+                             pose_cpu_s + time.process_time() - c0, pose_cpu_s)
 
 
 def _refined(best, best_score, score_of, evaluations: int, duration_s: float, max_rate_deg_s: float,

@@ -46,7 +46,7 @@ class Plan:
     start_poses: tuple = ()           # (name, [roll, pitch, yaw] deg) the search scored the plan from
     pose_std: list = dataclasses.field(default_factory=list)             # the plan's std from each start pose
     pose_reference_std: list = dataclasses.field(default_factory=list)   # the paper's motion's, from each
-    accelerometer: object = None      # the base's accelerometer: its std and poses (plan_accelerometer.PlanAccelerometer)
+    accelerometer: object = None      # plan_accelerometer.PlanAccelerometer: the base's accelerometer's std and poses
 
     @property
     def name(self) -> str:
@@ -137,8 +137,9 @@ class Plan:
                  f"  {'in all (turning too)':<30}" + "".join(f"{a.cone_s[f]:>8.1f}" for f in FACES),
                  f"  how: {a.how}",
                  f"  the gyro's largest std / paper motion's over the start poses: {a.searched_worst_ratio:.2f} as "
-                 f"searched, {self.worst_ratio:.2f} with the poses held (x{self.worst_ratio / a.searched_worst_ratio:.2f})"
-                 f"; {a.seconds:.0f} s of CPU for the accelerometer's part",
+                 f"searched, {self.worst_ratio:.2f} with the poses held "
+                 f"(x{self.worst_ratio / a.searched_worst_ratio:.2f})"
+                 f"; {a.seconds:.0f} s of CPU for the accelerometer's part ({a.pose_seconds:.0f} s for the poses)",
                  "",
                  "Predicted one-sigma of the accelerometer's 12 parameters (crlb_accelerometer: the Cramer-Rao bound "
                  "with the hand's acceleration as noise of its ensemble, magyro montecarlo's CRLB column), with the "
@@ -283,7 +284,7 @@ class Plan:
         ref = [] if a.reference_std is None else ["", "[plan.accelerometer.reference_std]",
                                                    *[f"{q(k)} = {_num(v)}" for k, v in a.reference_std.items()]]
         return ["",
-                "[plan.accelerometer]   # crlb_accelerometer's bound with the hand at noise seed 0, as montecarlo's CRLB",
+                "[plan.accelerometer]   # the bound: crlb_accelerometer's with the hand at noise seed 0 (montecarlo's)",
                 f"how = {q(a.how)}",
                 f"max_ratio_over_start_poses_as_searched = {_num(round(a.searched_worst_ratio, 6))}",
                 "",
