@@ -199,8 +199,8 @@ def make_plan(duration_s: float, gyro_noise_deg_s_sqrt_hz: float | None = None, 
         c0 = time.process_time()
         others = [(f"the template {tpl.describe()}", tpl.moves(n_moves)) for tpl in finalists if tpl is not best_tpl]
         best, first_rest_s, best_score, pose_how = hold_poses(
-            best, best_score, lambda m, first: evaluate(m, poses, first)[0], base, duration_s, max_rate_deg_s,
-            others=others)
+            best, best_score, lambda m, first: evaluate(m, poses, first)[0], _refined, base, duration_s,
+            max_rate_deg_s, others=others)
         acc_cpu_s = time.process_time() - c0
     stds = evaluate(best, poses, first_rest_s)[1]
     turns = layout(best, duration_s, max_rate_deg_s, first_rest_s)

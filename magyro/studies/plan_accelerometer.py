@@ -244,19 +244,18 @@ def _nearest_face(u: np.ndarray) -> str:
     return ("+" if u[i] > 0 else "-") + "xyz"[i]
 
 
-def hold_poses(best, best_score, score_of, base: Scenario, duration_s: float, max_rate_deg_s: float,
+def hold_poses(best, best_score, score_of, refined, base: Scenario, duration_s: float, max_rate_deg_s: float,
                refine_evaluations: int = ACC_REFINE_EVALUATIONS, others=()):
     """The searched moves with every pose held (module doc): (moves, first rest s, score, how). The ways are tried
     on the searched moves and on `others` (the search's other finalists, named): a plan that holds the poses may
-    start from another one.
+    start from another one. `score_of(moves, first rest s)` is the search's score, `refined` its refinement
+    (plan._refined, given by the caller: plan imports this module).
 
     Two levels of holding: as observe counts it on the simulated session (`covered`), or, where no way reaches that
     (observe's stillness weight counts a pose whose uncalibrated |y| is far from the rests' g at a fraction of its
     seconds, and a short plan has no room to hold it longer), HOLD_S of rest in each pose on the truth
     (`rest_pose_seconds`): the first is kept when any way reaches it, else the second, which the table then shows
     short in observe's count."""
-    from magyro.studies.plan import _refined
-
     searched = layout(best, duration_s, max_rate_deg_s)
     if covered(base, searched, duration_s):
         return best, REST_S, best_score, "the searched plan's rests hold every pose"
@@ -286,8 +285,7 @@ def hold_poses(best, best_score, score_of, base: Scenario, duration_s: float, ma
             return math.inf, math.inf
         return score_of(m, first)
 
-    moves, score, changes = _refined(moves, score, constrained, refine_evaluations, duration_s, max_rate_deg_s,
-                                     first)
+    moves, score, changes = refined(moves, score, constrained, refine_evaluations, duration_s, max_rate_deg_s, first)
     alike = [sc[0] for sh, sc, *_ in candidates if sh == short]
     tried = f"{len(alike)} of {len(candidates)}, the largest gyro ratio {min(alike):.2f}-{max(alike):.2f}"
     level = (f"each pose held at least {HOLD_S:g} s of rest, but observe's stillness weight counts some short "
