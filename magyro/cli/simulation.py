@@ -86,13 +86,14 @@ def plan_command(
     gyro_noise: Optional[float] = typer.Option(None, "--gyro-noise", parser=gyro_noise_density, metavar="DENSITY", help=gyro_noise_help("the base problem's")),
     mag_noise: Optional[float] = typer.Option(None, "--mag-noise", help="Magnetometer noise std per axis, in the base problem's unit (default: the base problem's)."),
     max_rate: float = typer.Option(200.0, "--max-rate", help="Peak body rate of every turn, deg/s (the comparison motions are brought to it too)."),
-    base: str = typer.Option("paper-table1", "--base", help="Problem whose sensors the plan is for (its start pose is the written plan's; the search scores 6 start poses): a file, or the name of one shipped in problems/."),
+    base: str = typer.Option("paper-table1", "--base", help="Problem whose sensors the plan is for (its start pose is the written plan's; the search scores 6 start poses): a file, or the name of one shipped in problems/. With an [accelerometer] (e.g. paper-table1-acc) the plan also holds its six poses and predicts its 12 parameters."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the plan as a problem file (TOML, motion kind \"turns\", the predicted std in [plan]); simulate or montecarlo it."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress and no table on the terminal."),
 ):
     """A motion to do by hand: a short list of turns about the device's axes, chosen for the smallest predicted
     std of the gyro parameters (the Fisher information the solve uses) from any of 6 start poses, beside the paper's
-    motion started from each and the canonical ones at the same duration and peak rate. Under a minute."""
+    motion started from each and the canonical ones at the same duration and peak rate. With an accelerometer in the
+    base, the six poses it needs held too, and its 12 parameters' predicted std. Under a minute."""
     def action():
         from magyro.io import check_outputs, write_text_atomically
         from magyro.studies.plan import make_plan

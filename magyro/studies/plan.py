@@ -67,6 +67,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from magyro.errors import InputError
+from magyro.studies.plan_accelerometer import (PlanAccelerometer, accelerometer_bound, accelerometer_std, hold_poses,
+                                               observed_pose_seconds)
 from magyro.studies.plan_result import Comparison, Plan
 from magyro.studies.plan_scoring import (  # noqa: F401  (GROUPS, GYRO_ROWS, gyro_covariance, std_ratio_interval: public)
     GROUPS, GYRO_ROWS, START_POSES, gyro_covariance, gyro_std, paper_motion, pose_score, pose_std, rescaled,
@@ -157,9 +159,9 @@ def make_plan(duration_s: float, gyro_noise_deg_s_sqrt_hz: float | None = None, 
     cache: dict[tuple, tuple[tuple[float, float], list]] = {}
     n_moves = int(duration_s / turn_seconds(90.0, max_rate_deg_s)) + 2     # more than ever fit
 
-    def evaluate(moves, at) -> tuple[tuple[float, float], list]:
+    def evaluate(moves, at, first_rest_s: float = REST_S) -> tuple[tuple[float, float], list]:
         """(pose_score over the poses `at`, the std from each)."""
-        turns = layout(moves, duration_s, max_rate_deg_s)
+        turns = layout(moves, duration_s, max_rate_deg_s, first_rest_s)
         key = (tuple((None if st.is_rest else tuple(np.round(st.axis, 9)), st.angle_deg, st.seconds)
                      for st in turns), tuple(map(tuple, at)))
         if key not in cache:
@@ -191,8 +193,17 @@ def make_plan(duration_s: float, gyro_noise_deg_s_sqrt_hz: float | None = None, 
             best_score, best_tpl, best = sc, tpl, tpl.moves(n_moves)
     best, best_score, changes = _refined(best, best_score, lambda m: evaluate(m, poses)[0], refine_evaluations,
                                          duration_s, max_rate_deg_s)
-    stds = evaluate(best, poses)[1]
-    turns = layout(best, duration_s, max_rate_deg_s)
+    searched_worst_ratio, first_rest_s, pose_how, acc_cpu_s = best_score[0], REST_S, "", 0.0
+    if base.accelerometer is not None:
+        step("planning: the accelerometer's six poses")
+        c0 = time.process_time()
+        others = [(f"the template {tpl.describe()}", tpl.moves(n_moves)) for tpl in finalists if tpl is not best_tpl]
+        best, first_rest_s, best_score, pose_how = hold_poses(
+            best, best_score, lambda m, first: evaluate(m, poses, first)[0], _refined, base, duration_s,
+            max_rate_deg_s, others=others)
+        acc_cpu_s = time.process_time() - c0
+    stds = evaluate(best, poses, first_rest_s)[1]
+    turns = layout(best, duration_s, max_rate_deg_s, first_rest_s)
     chosen = f"{best_tpl.describe()}; then {changes} single-turn changes"
 
     comparisons = []
@@ -210,12 +221,39 @@ def make_plan(duration_s: float, gyro_noise_deg_s_sqrt_hz: float | None = None, 
                 f"{'/'.join(f'{a:g}' for a in REFINE_ANGLES_DEG)} deg, pause {'/'.join(f'{p:g}' for p in REFINE_PAUSES_S)}"
                 f" s; seed {REFINE_SEED}) kept when better, {changes} kept; {len(cache)} scorings; score: the largest "
                 f"std / paper std of the 12 gyro parameters over the {len(poses)} start poses")
+    accelerometer = None
+    if base.accelerometer is not None:
+        accelerometer = accelerometer_part(plan_scenario(base, turns, duration_s), reference, comparisons, pose_how,
+                                           searched_worst_ratio, acc_cpu_s)
     return Plan(duration_s, max_rate_deg_s, base.gyro_noise_density_deg_s_sqrt_hz, base.mag_noise_std, base, turns,
                 chosen, std, reference, comparisons, searched, len(cache), time.perf_counter() - t_start,
-                tuple(start_poses), stds, [reference_std[tuple(p)] for p in poses])
+                tuple(start_poses), stds, [reference_std[tuple(p)] for p in poses], accelerometer)
 
 
-def _refined(best, best_score, score_of, evaluations: int, duration_s: float, max_rate_deg_s: float):
+def accelerometer_part(problem: Scenario, reference: Comparison, comparisons: list[Comparison], pose_how: str,
+                       searched_worst_ratio: float, pose_cpu_s: float) -> PlanAccelerometer:
+    """The plan's accelerometer (plan_accelerometer's module doc): the bound of its 12 parameters on the plan and on
+    every comparison motion, the poses observe sees held on the plan's simulated session."""
+    from magyro.progress import step
+    from magyro.studies.crlb_accelerometer import ACC_ROWS
+
+    c0 = time.process_time()
+    step("planning: the accelerometer's bound on the plan")
+    bound = accelerometer_bound(problem)
+    rows = lambda v: dict(zip(ACC_ROWS, map(float, v)))   # noqa: E731
+    others = []
+    for c in [reference] + comparisons:
+        step(f"planning: the accelerometer's bound on {c.name}")
+        others.append(accelerometer_std(c.scenario) if c.error is None and c.scenario is not None else None)
+    held_s, cone_s = observed_pose_seconds(problem)
+    return PlanAccelerometer(rows(bound.accelerometer_std), rows(bound.white_accelerometer_std),
+                             rows(bound.weighted_accelerometer_std), others[0],
+                             reference.error, others[1:], held_s, cone_s, pose_how, searched_worst_ratio,
+                             pose_cpu_s + time.process_time() - c0, pose_cpu_s)
+
+
+def _refined(best, best_score, score_of, evaluations: int, duration_s: float, max_rate_deg_s: float,
+             first_rest_s: float = REST_S):
     """The refinement (module doc, step 2): one turn's axis, angle or pause changed at a time, drawn from
     REFINE_SEED, kept when it lowers the score; (moves, score, changes kept)."""
     from magyro.progress import step
@@ -226,7 +264,7 @@ def _refined(best, best_score, score_of, evaluations: int, duration_s: float, ma
     for n in range(evaluations):
         step(f"planning: refining {n + 1}/{evaluations}")
         moves = list(best)
-        k = int(rng.integers(0, fitting(best, duration_s, max_rate_deg_s)))
+        k = int(rng.integers(0, fitting(best, duration_s, max_rate_deg_s, first_rest_s)))
         axis, angle, pause = moves[k]
         what = int(rng.integers(0, 3))
         if what == 0:

@@ -46,6 +46,7 @@ class Plan:
     start_poses: tuple = ()           # (name, [roll, pitch, yaw] deg) the search scored the plan from
     pose_std: list = dataclasses.field(default_factory=list)             # the plan's std from each start pose
     pose_reference_std: list = dataclasses.field(default_factory=list)   # the paper's motion's, from each
+    accelerometer: object = None      # plan_accelerometer.PlanAccelerometer: the base's accelerometer's std and poses
 
     @property
     def name(self) -> str:
@@ -84,8 +85,12 @@ class Plan:
                  "The motion (each turn about the device's own axis, wherever the previous turns left it; "
                  "right-hand rule: thumb along the axis, fingers curl the way to turn; start slowly, be "
                  "fastest half way, stop smoothly):"]
-        lines.append(f"  0. start in any pose, e.g. {start_pose_instruction(self.base.C0).removeprefix('start ')}: "
-                     f"the turns were scored from the {len(self.start_poses)} start poses below")
+        if self.accelerometer is None:
+            lines.append(f"  0. start in any pose, e.g. {start_pose_instruction(self.base.C0).removeprefix('start ')}: "
+                         f"the turns were scored from the {len(self.start_poses)} start poses below")
+        else:
+            lines.append(f"  0. {start_pose_instruction(self.base.C0)}: the accelerometer's poses below need this "
+                         f"axis up (the gyro's scores hold from any of the {len(self.start_poses)} start poses below)")
         lines += instructions(self.turns)
         lines += ["", *self.pose_table()]
         e = self.base.motion.initial_euler_deg
@@ -111,9 +116,43 @@ class Plan:
         lines.append("")
         for c in [self.reference] + others:
             lines.append(f"  {c.name}: {c.error if c.error else c.how}")
+        if self.accelerometer is not None:
+            lines += ["", *self.accelerometer_table()]
         lines += ["", f"Search: {self.searched}", f"Chosen: {self.template}; {self.evaluations} scorings in "
                       f"{self.seconds:.0f} s."]
         return "\n".join(lines)
+
+    def accelerometer_table(self) -> list[str]:
+        """The accelerometer's block: the poses held, what holding them cost the gyro, its predicted std."""
+        from magyro.observability.gravity import FACE_CONE_DEG, FACE_ENOUGH_S, FACES
+        from magyro.studies.plan_accelerometer import HOLD_S
+
+        a = self.accelerometer
+        lines = [f"The accelerometer ([accelerometer] of {self.base.name}, kept in the written plan): its six poses, "
+                 f"the specific force within {FACE_CONE_DEG:g} deg of each axis (observe's rule, weighted by "
+                 f"stillness, on the plan's simulated session), seconds; observe asks for {FACE_ENOUGH_S:g} s each, "
+                 f"the plan holds {HOLD_S:g}:",
+                 f"  {'pose':<30}" + "".join(f"{f:>8}" for f in FACES),
+                 f"  {'held still':<30}" + "".join(f"{a.held_s[f]:>8.1f}" for f in FACES),
+                 f"  {'in all (turning too)':<30}" + "".join(f"{a.cone_s[f]:>8.1f}" for f in FACES),
+                 f"  how: {a.how}",
+                 f"  the gyro's largest std / paper motion's over the start poses: {a.searched_worst_ratio:.2f} as "
+                 f"searched, {self.worst_ratio:.2f} with the poses held "
+                 f"(x{self.worst_ratio / a.searched_worst_ratio:.2f})"
+                 f"; {a.seconds:.0f} s of CPU for the accelerometer's part ({a.pose_seconds:.0f} s for the poses)",
+                 "",
+                 "Predicted one-sigma of the accelerometer's 12 parameters (crlb_accelerometer: the Cramer-Rao bound "
+                 "with the hand's acceleration as noise of its ensemble, magyro montecarlo's CRLB column), with the "
+                 "white-noise bound (the hand still) and the spread of the solve's own weighting (not a bound: what a "
+                 "solve reaches with the same hand, docs/accelerometer.md):"]
+        others = [self.reference] + list(self.comparisons)
+        lines.append(f"  {'parameter':<24}{'plan':>11}{'white':>11}{'solve':>11}"
+                     + "".join(f"{c.name:>12}" for c in others))
+        for name in a.std:
+            row = f"  {name:<24}{a.std[name]:>11.3g}{a.white_std[name]:>11.3g}{a.weighted_std[name]:>11.3g}"
+            row += "".join(f"{o[name]:>12.3g}" if o else f"{'-':>12}" for o in [a.reference_std, *a.comparison_std])
+            lines.append(row)
+        return lines
 
     def pose_table(self) -> list[str]:
         """Per start pose: the field in the device, the largest std / paper motion's (and which parameter), the
@@ -185,6 +224,7 @@ class Plan:
             f"soft_iron = {_matrix(b.soft_iron)}",
             f"hard_iron = {_vec(b.hard_iron)}",
             "",
+            *self._accelerometer_section(),
             "[motion]",
             'kind = "turns"',
             f"initial_euler_deg = {_vec(b.motion.initial_euler_deg)}",
@@ -215,13 +255,54 @@ class Plan:
             "",
             "[plan.ratio_to_reference]",
             *[f"{q(k)} = {_num(round(v, 6))}" for k, v in ratio.items()],
+            *self._accelerometer_plan_tables(),
         ]
         text = "\n".join(lines) + "\n"
         _check_round_trip(text, self)
         return text
 
+    def _accelerometer_section(self) -> list[str]:
+        """The base's [accelerometer], so that simulate and montecarlo of the written plan calibrate it."""
+        acc = self.base.accelerometer
+        if acc is None:
+            return []
+        return ["[accelerometer]",
+                f"K_a = {_matrix(acc.K_a)}",
+                f"bias_m_s2 = {_vec(acc.bias_m_s2)}",
+                f"misalignment_euler_deg = {_vec(acc.misalignment_euler_deg)}",
+                f"noise_density_ug_sqrt_hz = {_num(acc.noise_density_ug_sqrt_hz)}",
+                f"g_m_s2 = {_num(acc.g_m_s2)}",
+                f"hand_translation_m = {_num(acc.hand_translation_m)}",
+                ""]
+
+    def _accelerometer_plan_tables(self) -> list[str]:
+        """[plan.accelerometer]: the poses held and the accelerometer's predicted std (informational)."""
+        a = self.accelerometer
+        if a is None:
+            return []
+        q = _toml_str
+        ref = [] if a.reference_std is None else ["", "[plan.accelerometer.reference_std]",
+                                                   *[f"{q(k)} = {_num(v)}" for k, v in a.reference_std.items()]]
+        return ["",
+                "[plan.accelerometer]   # the bound: crlb_accelerometer's with the hand at noise seed 0 (montecarlo's)",
+                f"how = {q(a.how)}",
+                f"max_ratio_over_start_poses_as_searched = {_num(round(a.searched_worst_ratio, 6))}",
+                "",
+                "[plan.accelerometer.pose_held_s]   # observe's pose rule on the simulated session, still samples only",
+                *[f"{q(k)} = {_num(round(v, 6))}" for k, v in a.held_s.items()],
+                "",
+                "[plan.accelerometer.predicted_std]",
+                *[f"{q(k)} = {_num(v)}" for k, v in a.std.items()],
+                "",
+                "[plan.accelerometer.white_noise_std]",
+                *[f"{q(k)} = {_num(v)}" for k, v in a.white_std.items()],
+                "",
+                "[plan.accelerometer.solve_weighting_std]   # not a bound: the spread of the solve's own weighting",
+                *[f"{q(k)} = {_num(v)}" for k, v in a.weighted_std.items()],
+                *ref]
+
     def to_dict(self) -> dict:
-        return {
+        out = {
             "duration_s": self.duration_s, "max_rate_deg_s": self.max_rate_deg_s,
             "turns": [{"rest_s": st.seconds} if st.is_rest else
                       {"axis": st.axis.tolist(), "angle_deg": st.angle_deg, "seconds": st.seconds} for st in self.turns],
@@ -232,6 +313,14 @@ class Plan:
             "template": self.template, "searched": self.searched, "evaluations": self.evaluations,
             "seconds": self.seconds,
         }
+        a = self.accelerometer
+        if a is not None:    # only then: a plan without an accelerometer is what it always was
+            out["accelerometer"] = {
+                "std": a.std, "white_noise_std": a.white_std, "solve_weighting_std": a.weighted_std,
+                "reference_std": a.reference_std, "comparison_std": a.comparison_std, "pose_held_s": a.held_s,
+                "pose_seconds_observe": a.cone_s, "how": a.how,
+                "max_ratio_over_start_poses_as_searched": a.searched_worst_ratio, "cpu_s": a.seconds}
+        return out
 
 
 def _comparison_dict(c: Comparison) -> dict:
@@ -245,6 +334,7 @@ def _check_round_trip(text: str, plan: "Plan") -> None:
 
     back = parse_problem(parse_toml(text), source=plan.name)
     assert len(back.motion.turns) == len(plan.turns)
+    assert (back.accelerometer is None) == (plan.base.accelerometer is None)
     for a, b in zip(back.motion.turns, plan.turns):
         assert a.is_rest == b.is_rest and a.seconds == b.seconds and a.angle_deg == b.angle_deg
         assert a.is_rest or np.allclose(a.axis, b.axis, atol=1e-12)

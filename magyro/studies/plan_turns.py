@@ -28,11 +28,11 @@ def turn_seconds(angle_deg: float, max_rate_deg_s: float) -> float:
     return round(max(PACE_STEP_S, math.ceil(t / PACE_STEP_S - 1e-9) * PACE_STEP_S), 6)
 
 
-def layout(moves, duration_s: float, max_rate_deg_s: float) -> tuple[Turn, ...]:
-    """Rest REST_S, the moves (axis name, signed angle, pause before) while they fit with a rest of at least
+def layout(moves, duration_s: float, max_rate_deg_s: float, first_rest_s: float = REST_S) -> tuple[Turn, ...]:
+    """Rest `first_rest_s`, the moves (axis name, signed angle, pause before) while they fit with a rest of at least
     REST_S after them, the end rest."""
-    steps = [Turn(None, 0.0, REST_S)]
-    t = REST_S
+    steps = [Turn(None, 0.0, first_rest_s)]
+    t = first_rest_s
     for k, (axis, angle, pause) in enumerate(moves):
         seconds = turn_seconds(angle, max_rate_deg_s)
         pause = pause if k > 0 else 0.0
@@ -46,9 +46,9 @@ def layout(moves, duration_s: float, max_rate_deg_s: float) -> tuple[Turn, ...]:
     return tuple(steps)
 
 
-def fitting(moves, duration_s: float, max_rate_deg_s: float) -> int:
+def fitting(moves, duration_s: float, max_rate_deg_s: float, first_rest_s: float = REST_S) -> int:
     """How many of the moves the layout holds."""
-    return sum(not st.is_rest for st in layout(moves, duration_s, max_rate_deg_s))
+    return sum(not st.is_rest for st in layout(moves, duration_s, max_rate_deg_s, first_rest_s))
 
 
 def axis_label(axis: np.ndarray) -> str:
@@ -93,11 +93,12 @@ def instructions(turns: tuple[Turn, ...]) -> list[str]:
 
 def plan_scenario(base: Scenario, turns: tuple[Turn, ...], duration_s: float, name: str = "plan",
                   description: str = "") -> Scenario:
-    """The base sensors with a "turns" motion (checked like a problem file's)."""
-    from magyro.studies.scenario import _check_consistency
+    """The base sensors with a "turns" motion (checked like a problem file's; the hand's sway, if the base has an
+    accelerometer, is the one the written plan reads back with: scenario.TURNS_HAND)."""
+    from magyro.studies.scenario import TURNS_HAND, _check_consistency
 
-    motion = dataclasses.replace(base.motion, kind="turns", seed=0, axes=(), amplitude_deg=np.zeros(0),
-                                 rest_start_s=0.0, rest_end_s=0.0, turns=tuple(turns))
+    motion = dataclasses.replace(base.motion, kind="turns", axes=(), amplitude_deg=np.zeros(0),
+                                 rest_start_s=0.0, rest_end_s=0.0, turns=tuple(turns), **TURNS_HAND)
     s = dataclasses.replace(base, name=name, description=description, duration_s=duration_s, motion=motion,
                             source_path="")
     _check_consistency(s, name)

@@ -212,6 +212,9 @@ OPTIONAL_SECTIONS = ("spread", "accelerometer")
 INFORMATIONAL_SECTIONS = ("plan",)
 # the [motion] keys that mean something for kind "turns" (the others are refused there, not silently ignored)
 TURNS_MOTION_KEYS = ("kind", "turns", "initial_euler_deg")
+# what a "turns" motion takes for the fields it has no keys for; they draw only the hand's sway (studies/hand.py),
+# so a turns problem built in code (`magyro plan`) takes them too, and its hand is the one its written file reads back
+TURNS_HAND = {"seed": 0, "band_hz": (0.05, 0.5), "components": 1, "ramp_s": 1.0}
 TURN_KEYS = ("axis", "angle_deg", "seconds")
 
 
@@ -348,8 +351,7 @@ def _parse_turns_motion(mo: dict, where: str) -> Motion:
     if all(step.is_rest for step in steps):
         raise InputError(f"{where}: turns holds only rests; give at least one turn")
     return Motion(
-        kind="turns", seed=0, axes=(), amplitude_deg=np.zeros(0), band_hz=(0.05, 0.5), components=1,
-        rest_start_s=0.0, rest_end_s=0.0, ramp_s=1.0,
+        kind="turns", axes=(), amplitude_deg=np.zeros(0), rest_start_s=0.0, rest_end_s=0.0, **TURNS_HAND,
         initial_euler_deg=_vector3(mo.get("initial_euler_deg", [0.0, 0.0, 0.0]), where, "initial_euler_deg"),
         turns=tuple(steps),
     )
