@@ -165,12 +165,13 @@ def test_the_replay_ends_with_observe_s_accelerometer_section(broad02, replayed0
     np.testing.assert_array_equal(saved.t_acc_s, broad02.t_acc_s)
     np.testing.assert_array_equal(saved.acc_m_s2, broad02.acc_m_s2)
     assert saved.metadata["acc_unit"] == "m/s^2"
-    agrees_with(acc, magyro.observe(broad02).accelerometer)
+    observed = magyro.observe(broad02).accelerometer
+    agrees_with(acc, observed)
     agrees_with(acc, magyro.observe(saved).accelerometer)
     assert acc.rank == 12 and missing_poses(acc.face_s) == ["-x"]
-    # what it says: the poses held, the rank, the pose to hold next, observe's advice
-    assert "accelerometer: rank 12/12, poses (s) +x 11.5 -x 1.6 +y 4.2 -y 13.3 +z 40.3 -z 11.6; hold still with " \
-           "x down" in result.summary
+    # what it says: the poses held (observe's seconds), the rank, the pose to hold next, observe's advice
+    poses = " ".join(f"{face} {observed.face_s[face]:.1f}" for face in FACES)
+    assert f"accelerometer: rank 12/12, poses (s) {poses}; hold still with x down" in result.summary
     assert "with its x axis down (gravity along +x, ax = -g)" in result.summary
     assert "33994 accelerometer samples" in result.summary
     last = lines[-1]["accelerometer"]

@@ -70,16 +70,19 @@ def field_reference(t_mag_s: np.ndarray, mag: np.ndarray):
     return q
 
 
-def gravity_reference(t_acc_s: np.ndarray, acc_m_s2: np.ndarray, g_m_s2: float):
+def gravity_reference(t_acc_s: np.ndarray, acc_m_s2: np.ndarray, g_m_s2: float, size=None):
     """q = sqrt(s) [u; 1] at the gyro's times (`magyro observe`'s part 2, `gravity.gyro_with_gravity`): u the
-    accelerometer's direction, s its stillness (1 where |y| = g, falling as the hand shows)."""
-    from magyro.observability.gravity import stillness
+    accelerometer's direction, s its stillness (1 where |y| is the size `size` expects in that direction,
+    `gravity.ExpectedSize`, else g; falling as the hand shows)."""
+    from magyro.observability.gravity import ExpectedSize, stillness
+
+    expected = size or ExpectedSize.constant(g_m_s2)
 
     def q(t, lo):
         a = np.column_stack([np.interp(t, t_acc_s[lo:], acc_m_s2[lo:, j]) for j in range(3)])
         norm = np.linalg.norm(a, axis=1)
         u = a / np.where(norm > 0, norm, 1.0)[:, None]
-        return np.column_stack([u, np.ones(len(t))]) * np.sqrt(stillness(norm, g_m_s2))[:, None]
+        return np.column_stack([u, np.ones(len(t))]) * np.sqrt(stillness(norm, expected.at(u), g_m_s2))[:, None]
     return q
 
 

@@ -221,7 +221,8 @@ class ExcitationMonitor:
         if self.acc.n >= 2:
             acc = self.acc.view()
             self.gravity_integral.extend(self.gyro.view(), acc[:, 0],
-                                         gravity_reference(acc[:, 0], acc[:, 1:], self.g_reference_m_s2),
+                                         gravity_reference(acc[:, 0], acc[:, 1:], self.g_reference_m_s2,
+                                                           self.expected_size),
                                          lambda done: self._typical_dt)
 
     @property
@@ -231,6 +232,13 @@ class ExcitationMonitor:
 
         acc = self.acc_part.gravity
         return float(acc.g_reference_m_s2) if acc is not None else STANDARD_GRAVITY_M_S2
+
+    @property
+    def expected_size(self):
+        """The size the accelerometer reads still, by direction (`gravity.expected_size`, its part's on the rows so
+        far), or None (then g)."""
+        acc = self.acc_part.gravity
+        return acc.expected_size if acc is not None else None
 
     def _update_typical_dt(self, done: int) -> float | None:
         """The gyro's step over the last DT_WINDOW rows taken in (`done`): a longer step is a hole."""

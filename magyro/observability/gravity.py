@@ -19,8 +19,10 @@ Two questions, both answered from the readings alone (no solve):
    say what the gyro's calibration could reach with gravity, and the field-only weakest directions' signal to
    noise with and without it say which of them gravity rescues. The verdict stays the paper's theorem (field only).
 
-Samples where the reading's size departs from g (the hand's acceleration) count less:
-w = exp(-((|y| - g) / (STILL_SCALE g))^2 / 2), g the readings' size at the rests. The accelerometer's frame is taken
+Samples where the reading's size departs from the size expected in their direction (the hand's acceleration) count
+less: w = exp(-((|y| - s(u)) / (STILL_SCALE g))^2 / 2), g the readings' size at the rests and s(u) what an
+uncalibrated accelerometer reads still in the direction u (`expected_size`: its scale and bias errors put |y| a few %
+off g in some poses, and against g alone a pose held still counted a fraction of its seconds). The accelerometer's frame is taken
 for the magnetometer's (both are the device's axes to within the few degrees the solve estimates as C_b_a, C_b_m):
 the rank and the directions do not hinge on a few degrees.
 """
@@ -43,6 +45,9 @@ FACE_CONE_DEG = 45.0      # a pose "x axis up": the specific force within 45 deg
 FACE_ENOUGH_S = 2.0       # a pose counts as held when gravity sat there this long (seconds, weighted by stillness)
 SPREAD_ENOUGH = 0.1       # the spread below which the advice asks for more poses
 MIN_SAMPLES = 20
+SIZE_PRIOR_OF_G = 0.1     # the expected size's prior: scale and bias errors within a tenth of g (std), isotropic
+SIZE_FIT_SCALE = 3.0      # the samples its first fit reads: |y| within 3 STILL_SCALE of g (shaking left out)
+SIZE_FIT_ROUNDS = 2       # its fits: the second weighs each sample by its stillness against the first
 ACC_PARAMETERS = ("A[:,x]", "A[:,y]", "A[:,z]", "b")   # the 4 x 4's coordinates: the columns of A, and b (in g)
 FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
 
@@ -115,17 +120,25 @@ class AccelerometerObservability:
     gyro: GyroWithGravity | None = None
     # for the figure only (not in the JSON): gravity's still directions (|y| within ~6 % of g), in the body
     gravity_directions: np.ndarray = field(repr=False, default=None)
+    expected_size: ExpectedSize | None = field(repr=False, default=None)   # the size read still, by direction
 
     @property
     def sphere_fraction(self) -> float:
         return self.cells_visited / self.cells
+
+    def expected_size_dict(self) -> dict:
+        """The size read still by direction (`expected_size`), m/s^2, when known."""
+        if self.expected_size is None:
+            return {}
+        return {"expected_size_m_s2": {"c": json_list(self.expected_size.c), "d": json_list(self.expected_size.d)}}
 
     def to_dict(self) -> dict:
         return {
             "frames": "the accelerometer's axes taken for the magnetometer's (within the few degrees of C_b_a, C_b_m)",
             "g_reference_m_s2": json_number(self.g_reference_m_s2),
             "weighting": {"still_scale": STILL_SCALE, "still_seconds": json_number(self.still_s),
-                          "rule": "w = exp(-((|y| - g) / (still_scale g))^2 / 2)"},
+                          "rule": "w = exp(-((|y| - s(u)) / (still_scale g))^2 / 2), s(u) = c . u + d . (u * u)",
+                          **self.expected_size_dict()},
             "noise": {"white_m_s2": json_number(self.white_noise_m_s2), "hand_m_s2": json_number(self.hand_m_s2)},
             "parameters": {"model": "f = A y + b (12 parameters); information (sum of [u;1][u;1]^T) (x) I, u = y / g",
                            "rank": int(self.rank), "condition": json_number(self.condition),
@@ -174,9 +187,61 @@ class AccelerometerObservability:
 # --------------------------------------------------------------------------- part 1: the accelerometer's parameters
 
 
-def stillness(norm: np.ndarray, g: float) -> np.ndarray:
-    """The weight of each sample: 1 where |y| = g, falling as the hand's acceleration shows in the size."""
-    return np.exp(-0.5 * ((norm - g) / (STILL_SCALE * g)) ** 2)
+def stillness(norm: np.ndarray, expected, g: float | None = None) -> np.ndarray:
+    """The weight of each sample: 1 where |y| is the `expected` size (a number, or one per sample), falling as the
+    hand's acceleration shows in the size; the scale STILL_SCALE of g (default: of `expected`)."""
+    return np.exp(-0.5 * ((norm - expected) / (STILL_SCALE * (expected if g is None else g))) ** 2)
+
+
+@dataclass(frozen=True)
+class ExpectedSize:
+    """The size an accelerometer reads still, by the direction u of its reading: s(u) = c . u + d . (u * u). A
+    reading y = S f + b of a specific force of size g has, to first order in the scale errors S - I and the bias b,
+    |y| = g + b . u + g u^T (S - I) u: c is the bias, d g times the scale factors (their sum is g's at the isotropic
+    start, as u . u = 1). The non-orthogonality's share is second order and left out."""
+
+    c: np.ndarray
+    d: np.ndarray
+
+    @classmethod
+    def constant(cls, g: float) -> "ExpectedSize":
+        return cls(np.zeros(3), np.full(3, float(g)))
+
+    def at(self, u: np.ndarray) -> np.ndarray:
+        return u @ self.c + (u * u) @ self.d
+
+
+def expected_size(acc: np.ndarray, g: float) -> ExpectedSize:
+    """`ExpectedSize` fitted to the readings: least squares of |y| on [u, u * u] over the samples within
+    SIZE_FIT_SCALE x STILL_SCALE of g, with a prior that the accelerometer is within SIZE_PRIOR_OF_G of g in every
+    direction (a pose never visited keeps g); then again, each sample weighted by its stillness against the first
+    fit (SIZE_FIT_ROUNDS). Weighted by stillness against g from the start, the fit leaned towards g exactly in the
+    poses furthest from it. The hand's acceleration averages out of the size over a pose's seconds; the scale and
+    bias errors do not. BROAD 02 read through paper-table1-acc's accelerometer errors (scale 1.2-1.8 %, bias
+    0.15-0.25 m/s^2) reads 9.46-10.24 m/s^2 still, depending on the pose; the fit gives each pose's within 0.15."""
+    norm = np.linalg.norm(acc, axis=1)
+    ok = np.isfinite(norm) & (norm > 0)
+    u, norm = acc[ok] / norm[ok, None], norm[ok]
+    X = np.column_stack([u, u * u])
+    noise = STILL_SCALE * g                                  # the size's spread with the hand in it, per sample
+    prior = np.concatenate([np.zeros(3), np.full(3, float(g))])
+    size = ExpectedSize.constant(g)
+    w = (np.abs(norm - g) < SIZE_FIT_SCALE * noise).astype(float)
+    for _ in range(SIZE_FIT_ROUNDS):
+        A = (X * w[:, None]).T @ X / noise**2 + np.eye(6) / (SIZE_PRIOR_OF_G * g) ** 2
+        rhs = (X * w[:, None]).T @ norm / noise**2 + prior / (SIZE_PRIOR_OF_G * g) ** 2
+        theta = np.linalg.solve(A, rhs)
+        size = ExpectedSize(theta[:3], theta[3:])
+        w = stillness(norm, size.at(u), g)
+    return size
+
+
+def still_weights(acc: np.ndarray, g: float, size: ExpectedSize | None = None) -> np.ndarray:
+    """(n,) each sample's stillness against the size expected in its direction (`expected_size`, fitted here when not
+    given), its scale STILL_SCALE of g."""
+    norm = np.linalg.norm(acc, axis=1)
+    u = acc / np.where(norm > 0, norm, 1.0)[:, None]
+    return stillness(norm, (size or expected_size(acc, g)).at(u), g)
 
 
 def reference_g(t_s, acc, rests_s, t_gyro_s=None, gyro=None) -> float:
@@ -194,11 +259,11 @@ def reference_g(t_s, acc, rests_s, t_gyro_s=None, gyro=None) -> float:
     return float(np.median(norm))
 
 
-def accelerometer_information(t_s, acc, g: float, sigma_u: float | None = None):
+def accelerometer_information(t_s, acc, g: float, sigma_u: float | None = None, size: ExpectedSize | None = None):
     """(J, N, W, u): J = sum over samples of W [u;1][u;1]^T (4 x 4, u = y / g), N what noise of std sigma_u on u puts
-    in it (as the gate's floor), W the samples' weights (trapezoid x stillness), u the unit directions."""
+    in it (as the gate's floor), W the samples' weights (trapezoid x `still_weights`), u the unit directions."""
     norm = np.linalg.norm(acc, axis=1)
-    W = trapezoid_weights(t_s) * stillness(norm, g)
+    W = trapezoid_weights(t_s) * still_weights(acc, g, size)
     u = acc / np.where(norm > 0, norm, 1.0)[:, None]
     u1 = np.column_stack([u, np.ones(len(u))])
     J = (u1 * W[:, None]).T @ u1
@@ -260,8 +325,10 @@ def white_noise_m_s2(acc) -> float:
     return float(np.sqrt(np.mean(white_noise_std(acc) ** 2)))
 
 
-def accelerometer_noise(t_s, acc, rests_s, g: float, white: float | None = None) -> tuple[float, float]:
-    """(white noise per sample, the hand's RMS along gravity), m/s^2. `white` given: taken as it is."""
+def accelerometer_noise(t_s, acc, rests_s, g: float, white: float | None = None,
+                        size: ExpectedSize | None = None) -> tuple[float, float]:
+    """(white noise per sample, the hand's RMS along gravity: the size's departure from the one expected in its
+    direction, `expected_size`), m/s^2. `white` given: taken as it is."""
     still = []
     for a, b in rests_s:
         x = acc[(t_s >= a) & (t_s <= b)]
@@ -270,8 +337,9 @@ def accelerometer_noise(t_s, acc, rests_s, g: float, white: float | None = None)
     if white is None:
         white = float(np.sqrt(np.mean(np.concatenate(still) ** 2))) if still else white_noise_m_s2(acc)
     norm = np.linalg.norm(acc, axis=1)
-    w = stillness(norm, g)
-    ms = float(np.sum(w * (norm - g) ** 2) / max(np.sum(w), 1e-300))
+    expected = (size or expected_size(acc, g)).at(acc / np.where(norm > 0, norm, 1.0)[:, None])
+    w = stillness(norm, expected, g)
+    ms = float(np.sum(w * (norm - expected) ** 2) / max(np.sum(w), 1e-300))
     return white, math.sqrt(max(ms - white ** 2, 0.0))
 
 
@@ -289,7 +357,7 @@ def weighted_noise_matrix(t_gyro_s, gyro_rad_s, u, W, gyro_sample_std: float, si
 
 
 def gyro_with_gravity(session, field_m, analysis, rates_rad_s, gyro_sample_std: float, mag_std_unit_field: float,
-                      g: float, sigma_u: float, most: int = 3) -> GyroWithGravity | None:
+                      g: float, sigma_u: float, most: int = 3, size: ExpectedSize | None = None) -> GyroWithGravity | None:
     """Part 2 on the span the gate analyses (`session`, rests trimmed): the field's integral of M^T M plus gravity's."""
     t, y = session.t_gyro_s, session.gyro_rad_s
     ta, acc = _finite(session.t_acc_s, session.acc_m_s2)
@@ -302,7 +370,7 @@ def gyro_with_gravity(session, field_m, analysis, rates_rad_s, gyro_sample_std: 
     norm_a = np.linalg.norm(acc, axis=1)
     u = interpolate_rows(t_in, ta, acc / np.where(norm_a > 0, norm_a, 1.0)[:, None])
     u /= np.linalg.norm(u, axis=1, keepdims=True)
-    still = stillness(np.interp(t_in, ta, norm_a), g)
+    still = stillness(np.interp(t_in, ta, norm_a), (size or expected_size(acc, g)).at(u), g)
     still[overlaps_a_hole(t_in, t_in, hole_spans_s(ta))] = 0.0     # nothing is known of gravity in a hole
     G_g = information_integral(t_in, y_in, t_in, u * np.sqrt(still)[:, None])   # M^T M is quadratic in u
     W = trapezoid_weights(t_in) * still
@@ -372,9 +440,10 @@ def accelerometer_parameters(t_acc_s, acc_m_s2, rests_s, t_gyro_s=None, gyro_rad
     g = reference_g(ta, acc, rests_s, t_gyro_s, gyro_rad_s)
     if not g > 0:
         return None
-    white, hand = accelerometer_noise(ta, acc, rests_s, g, white_m_s2)
+    size = expected_size(acc, g)
+    white, hand = accelerometer_noise(ta, acc, rests_s, g, white_m_s2, size)
     sigma_u = math.hypot(white, hand) / g
-    J, N, W, u = accelerometer_information(ta, acc, g, sigma_u)
+    J, N, W, u = accelerometer_information(ta, acc, g, sigma_u, size)
     lam, V = np.linalg.eigh(J)
     rank4, snr = directional_rank(lam, V, N + NUMERICAL_RTOL * lam[-1] * np.eye(4))
     order = np.argsort(snr, kind="stable")
@@ -385,7 +454,7 @@ def accelerometer_parameters(t_acc_s, acc_m_s2, rests_s, t_gyro_s=None, gyro_rad
     c_lam, c_vec = np.linalg.eigh(cov)
     weakest = c_vec[:, 0] * np.sign(c_vec[np.argmax(np.abs(c_vec[:, 0])), 0])
     faces = face_seconds(u, W)
-    held = u[stillness(np.linalg.norm(acc, axis=1), g) >= 0.5]
+    held = u[still_weights(acc, g, size) >= 0.5]
     cells = np.unique(sphere_cell(held))
     spread = float(3.0 * max(c_lam[0], 0.0))
     return AccelerometerObservability(
@@ -393,7 +462,7 @@ def accelerometer_parameters(t_acc_s, acc_m_s2, rests_s, t_gyro_s=None, gyro_rad
         rank=3 * rank4, condition=float(lam[-1] / lam[0]) if lam[0] > 0 else math.inf, eigenvalues=lam / lam[-1],
         directions=directions, spread=spread, spread_eigenvalues=3.0 * c_lam, spread_weakest=weakest,
         face_s=faces, cells_visited=int(cells.size), cells=SPHERE_BANDS * SPHERE_SECTORS,
-        advice=accelerometer_advice(faces, spread, weakest), gyro=None, gravity_directions=held)
+        advice=accelerometer_advice(faces, spread, weakest), gyro=None, gravity_directions=held, expected_size=size)
 
 
 def observe_accelerometer(full_session, moving_session, field_m, analysis, rates_rad_s, rests_s,
@@ -408,7 +477,7 @@ def observe_accelerometer(full_session, moving_session, field_m, analysis, rates
         return None
     g, sigma_u = out.g_reference_m_s2, math.hypot(out.white_noise_m_s2, out.hand_m_s2) / out.g_reference_m_s2
     out.gyro = gyro_with_gravity(moving_session, field_m, analysis, rates_rad_s, gyro_sample_std, mag_std_unit_field,
-                                 g, sigma_u)
+                                 g, sigma_u, size=out.expected_size)
     return out
 
 

@@ -17,9 +17,10 @@ plan and on the search's other finalist templates:
    visit the missing poses (or all six), a shortest path over the cube's poses, HOLD_S held at each, then the
    turns (those that still fit).
 
-Observe's stillness weight reads |y| against the g of the rests, and an uncalibrated accelerometer's |y| differs
-from pose to pose by its scale and bias errors (9.44-10.21 m/s^2 on paper-table1-acc): a hold where |y| is 8 % off
-counts 0.28 of its seconds. So the holds observe counts short are lengthened in proportion (`lengthened`). A way
+Observe's stillness weight reads |y| against the size the accelerometer reads still in that direction
+(`gravity.expected_size`: an uncalibrated accelerometer's |y| differs from pose to pose by its scale and bias errors,
+9.44-10.21 m/s^2 on paper-table1-acc), and the hand's sway lowers it. So the holds observe counts short are
+lengthened in proportion (`lengthened`). A way
 that observe then counts holding every pose is preferred; where none does (a short plan has no room), one that
 holds HOLD_S of rest in each pose on the truth, and the table shows observe's count short. Among them the best gyro
 score (the search's: the largest std / the paper motion's over the start poses and the gyro's 12 parameters) is
@@ -252,8 +253,7 @@ def hold_poses(best, best_score, score_of, refined, base: Scenario, duration_s: 
     (plan._refined, given by the caller: plan imports this module).
 
     Two levels of holding: as observe counts it on the simulated session (`covered`), or, where no way reaches that
-    (observe's stillness weight counts a pose whose uncalibrated |y| is far from the rests' g at a fraction of its
-    seconds, and a short plan has no room to hold it longer), HOLD_S of rest in each pose on the truth
+    (the hand's sway lowers observe's stillness weight, and a short plan has no room to hold a pose longer), HOLD_S of rest in each pose on the truth
     (`rest_pose_seconds`): the first is kept when any way reaches it, else the second, which the table then shows
     short in observe's count."""
     searched = layout(best, duration_s, max_rate_deg_s)
@@ -303,8 +303,8 @@ def observed_pose_seconds(problem: Scenario) -> tuple[dict, dict]:
     """(held still, in the cone) per pose on the problem's noise-seed-0 session, by observe's functions on the
     simulated session (its rests, `excitation.gate_inputs`, give g; `gravity.accelerometer_information`'s weights,
     trapezoid x stillness; `face_seconds`): the first counts only the samples where the device does not turn (the
-    truth's rate), the second is observe's own count. The stillness weight reads |y| against the g of the rests, so
-    a pose where the uncalibrated scale and bias put |y| a few % off it counts less than its seconds."""
+    truth's rate), the second is observe's own count. The stillness weight reads |y| against the size expected in
+    its direction (`gravity.expected_size`), so the hand's sway, not the uncalibrated scale and bias, lowers it."""
     from magyro.observability.excitation import gate_inputs
     from magyro.observability.gravity import accelerometer_information, reference_g
     from magyro.options import Options
