@@ -56,6 +56,8 @@ def main() -> None:
 
     path = args.out or Path(tempfile.mkdtemp(prefix="plan_acc_")) / "plan.toml"
     path.write_text(plan.to_problem_toml())
+    if args.runs < 1:   # the plan's part alone
+        return
     t0 = time.perf_counter()
     result = run_montecarlo(load_problem(path), runs=args.runs, jobs=args.jobs)
     nls = result.methods["nls"]
