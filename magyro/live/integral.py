@@ -74,7 +74,7 @@ def gravity_reference(t_acc_s: np.ndarray, acc_m_s2: np.ndarray, g_m_s2: float, 
     """q = sqrt(s) [u; 1] at the gyro's times (`magyro observe`'s part 2, `gravity.gyro_with_gravity`): u the
     accelerometer's direction, s its stillness (1 where |y| is the size `size` expects in that direction,
     `gravity.ExpectedSize`, else g; falling as the hand shows)."""
-    from magyro.observability.gravity import ExpectedSize, stillness
+    from magyro.observability.stillness import ExpectedSize, stillness
 
     expected = size or ExpectedSize.constant(g_m_s2)
 
