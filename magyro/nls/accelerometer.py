@@ -218,7 +218,8 @@ def hand_detected(excess: np.ndarray, start: AccelerometerStart) -> bool:
     third of the white noise's after three passes where nothing moved the device (paper-table1-acc without a hand,
     80 seeds: the accelerometer's std 1.25-1.55x its Cramer-Rao bound). The size's variance is 1.3-1.9 times the
     white noise's there (the fit's own error in A and b, shrinking pass by pass), 11-12 times with the simulated
-    5 cm hand, thousands of times on BROAD. A hand below the bound is still counted in the std (`hand_motion`)."""
+    5 cm hand, 300-3500 times on BROAD (trials 02 and 07). A hand below the bound is still counted in the std
+    (`hand_motion`)."""
     used = start.count > 0
     if used.sum() < 2:
         return False
