@@ -21,10 +21,10 @@ Two questions, both answered from the readings alone (no solve):
 
 Samples where the reading's size departs from the size expected in their direction (the hand's acceleration) count
 less: w = exp(-((|y| - s(u)) / (STILL_SCALE g))^2 / 2), g the readings' size at the rests and s(u) what an
-uncalibrated accelerometer reads still in the direction u (`expected_size`: its scale and bias errors put |y| a few %
-off g in some poses, and against g alone a pose held still counted a fraction of its seconds). The accelerometer's frame is taken
-for the magnetometer's (both are the device's axes to within the few degrees the solve estimates as C_b_a, C_b_m):
-the rank and the directions do not hinge on a few degrees.
+uncalibrated accelerometer reads still in the direction u (`stillness.expected_size`: its scale and bias errors put
+|y| a few % off g in some poses, and against g alone a pose held still counted a fraction of its seconds). The
+accelerometer's frame is taken for the magnetometer's (both are the device's axes to within the few degrees the
+solve estimates as C_b_a, C_b_m): the rank and the directions do not hinge on a few degrees.
 """
 from __future__ import annotations
 
