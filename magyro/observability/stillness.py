@@ -18,10 +18,10 @@ SIZE_FIT_SCALE = 3.0      # the samples its first fit reads: |y| within 3 STILL_
 SIZE_FIT_ROUNDS = 2       # its fits: the second weighs each sample by its stillness against the first
 
 
-def stillness(norm: np.ndarray, expected, g: float | None = None) -> np.ndarray:
+def stillness(norm: np.ndarray, expected, g: float) -> np.ndarray:
     """The weight of each sample: 1 where |y| is the `expected` size (a number, or one per sample), falling as the
-    hand's acceleration shows in the size; the scale STILL_SCALE of g (default: of `expected`)."""
-    return np.exp(-0.5 * ((norm - expected) / (STILL_SCALE * (expected if g is None else g))) ** 2)
+    hand's acceleration shows in the size, on the scale STILL_SCALE of g."""
+    return np.exp(-0.5 * ((norm - expected) / (STILL_SCALE * g)) ** 2)
 
 
 @dataclass(frozen=True)

@@ -67,8 +67,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from magyro.errors import InputError
-from magyro.studies.plan_accelerometer import (PlanAccelerometer, accelerometer_bound, accelerometer_std, hold_poses,
-                                               observed_pose_seconds)
+from magyro.studies.plan_accelerometer import (PlanAccelerometer, acc_rows, accelerometer_bound, accelerometer_std,
+                                               hold_poses, observed_pose_seconds)
 from magyro.studies.plan_result import Comparison, Plan
 from magyro.studies.plan_scoring import (  # noqa: F401  (GROUPS, GYRO_ROWS, gyro_covariance, std_ratio_interval: public)
     GROUPS, GYRO_ROWS, START_POSES, gyro_covariance, gyro_std, paper_motion, pose_score, pose_std, rescaled,
@@ -235,19 +235,17 @@ def accelerometer_part(problem: Scenario, reference: Comparison, comparisons: li
     """The plan's accelerometer (plan_accelerometer's module doc): the bound of its 12 parameters on the plan and on
     every comparison motion, the poses observe sees held on the plan's simulated session."""
     from magyro.progress import step
-    from magyro.studies.crlb_accelerometer import ACC_ROWS
 
     c0 = time.process_time()
     step("planning: the accelerometer's bound on the plan")
     bound = accelerometer_bound(problem)
-    rows = lambda v: dict(zip(ACC_ROWS, map(float, v)))   # noqa: E731
     others = []
     for c in [reference] + comparisons:
         step(f"planning: the accelerometer's bound on {c.name}")
         others.append(accelerometer_std(c.scenario) if c.error is None and c.scenario is not None else None)
     held_s, cone_s = observed_pose_seconds(problem)
-    return PlanAccelerometer(rows(bound.accelerometer_std), rows(bound.white_accelerometer_std),
-                             rows(bound.weighted_accelerometer_std), others[0],
+    return PlanAccelerometer(acc_rows(bound.accelerometer_std), acc_rows(bound.white_accelerometer_std),
+                             acc_rows(bound.weighted_accelerometer_std), others[0],
                              reference.error, others[1:], held_s, cone_s, pose_how, searched_worst_ratio,
                              pose_cpu_s + time.process_time() - c0, pose_cpu_s)
 

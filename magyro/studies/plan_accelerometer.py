@@ -333,6 +333,11 @@ def accelerometer_bound(problem: Scenario):
 
 def accelerometer_std(problem: Scenario) -> dict:
     """The bound with the hand of the 12 parameters, ACC_ROWS -> std."""
+    return acc_rows(accelerometer_bound(problem).accelerometer_std)
+
+
+def acc_rows(values) -> dict:
+    """The accelerometer's 12 values by name (crlb_accelerometer.ACC_ROWS)."""
     from magyro.studies.crlb_accelerometer import ACC_ROWS
 
-    return dict(zip(ACC_ROWS, map(float, accelerometer_bound(problem).accelerometer_std)))
+    return dict(zip(ACC_ROWS, map(float, values)))
