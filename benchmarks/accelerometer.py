@@ -1,7 +1,7 @@
 """The accelerometer in the joint least squares (issue 26): the targets it is measured against, one table each.
 
     python benchmarks/accelerometer.py real [--session data/broad-02.parquet] [--out docs/numbers/accelerometer-broad-02.json]
-    python benchmarks/accelerometer.py sim [--problem paper-table1-acc] [--still] [--seeds 20] [--jobs 2] [--out RECORD]
+    python benchmarks/accelerometer.py sim [--problem paper-table1-acc] [--still] [--hand-states] [--seeds 20] [--jobs 2] [--out RECORD]
 
 `real`: the calibrated accelerometer's |f| at the rests against g (each rest of the session, found by the rests'
 own rule), the split halves (each half solved alone with --force; RMS z of the accelerometer's 12 parameters and of
@@ -100,13 +100,15 @@ def print_real(r: dict) -> None:
 
 
 def one_seed(args):
-    problem, seed = args
+    problem, seed, hand_states = args
+    from magyro.nls.method import NLS
     from magyro.studies.simulate import simulate
     session, truth = simulate(problem, seed)
-    return calibrate(session, Options(accelerometer=True)), calibrate(session, Options(accelerometer=False)), truth
+    return (calibrate(session, Options(accelerometer=True), NLS(hand_states=hand_states)),
+            calibrate(session, Options(accelerometer=False)), truth)
 
 
-def sim(problem: str, seeds: int, jobs: int, still: bool = False) -> dict:
+def sim(problem: str, seeds: int, jobs: int, still: bool = False, hand_states: bool = False) -> dict:
     from magyro.result.calibration import Calibration
     from magyro.studies.scenario import load_problem
 
@@ -114,7 +116,7 @@ def sim(problem: str, seeds: int, jobs: int, still: bool = False) -> dict:
     if still:   # turned about itself: no hand translation (a gimbal, a careful hand)
         prob = dataclasses.replace(prob, accelerometer=dataclasses.replace(prob.accelerometer, hand_translation_m=0.0))
     with ProcessPoolExecutor(jobs) as pool:
-        runs = list(pool.map(one_seed, [(prob, seed) for seed in range(seeds)]))
+        runs = list(pool.map(one_seed, [(prob, seed, hand_states) for seed in range(seeds)]))
     t = runs[0][2]["accelerometer"]
     C_ref = np.asarray(t["C_b_a"])
     truth_acc = np.concatenate([[np.asarray(t["K_a"])[i, j] for i, j in UPPER], t["bias_m_s2"], np.zeros(3)])
@@ -130,7 +132,7 @@ def sim(problem: str, seeds: int, jobs: int, still: bool = False) -> dict:
     bound = crlb(prob)
     actual, gactual = est.std(axis=0, ddof=1), gest.std(axis=0, ddof=1)
     gcrlb = np.array([gyro_stds(SimpleNamespace(std=bound.std))[k] for k in tv])
-    return {"problem": problem, "still": still, "seeds": seeds, "names": ACC_NAMES,
+    return {"problem": problem, "still": still, "hand_states": hand_states, "seeds": seeds, "names": ACC_NAMES,
             "mean_error": (est - truth_acc).mean(axis=0).tolist(), "actual": est.std(axis=0, ddof=1).tolist(),
             "reported": std.mean(axis=0).tolist(),
             "max_abs_z": np.max(np.abs((est - truth_acc) / std), axis=0).tolist(),
@@ -176,6 +178,8 @@ def main(argv=None) -> None:
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--still", action="store_true", help="sim: the problem's hand translation set to 0 (turned about itself)")
+    ap.add_argument("--hand-states", action="store_true",
+                    help="sim: solve with the hand's velocity as states (NLS(hand_states=True), nls/hand_states.py)")
     ap.add_argument("--out", help="write the record here (docs/numbers/accelerometer-*.json)")
     a = ap.parse_args(argv)
     command = "python benchmarks/accelerometer.py " + " ".join(argv or [])
@@ -184,7 +188,7 @@ def main(argv=None) -> None:
         print_real(record)
         record["provenance"] = provenance(command)
     else:
-        record = sim(a.problem, a.seeds, a.jobs, a.still)
+        record = sim(a.problem, a.seeds, a.jobs, a.still, a.hand_states)
         print_sim(record)
         record["provenance"] = measured_at(command)
     if a.out:

@@ -2,7 +2,7 @@
 
     python benchmarks/accelerometer_real.py [--only NAME,NAME] [--broad ../shared/data/broad] [--wild ../shared/data/wild]
                                            [--ulog ../shared/data/ulog] [--trials 03,05,09,21,30,32,34,36]
-                                           [--out docs/numbers/accelerometer-real.json]
+                                           [--hand-states] [--out docs/numbers/accelerometer-real.json]
 
 The recordings: the shipped BROAD trials 02 and 07 (data/), the shipped x-io board (data/wild/fusion) and PX4 log
 (data/px4-sample-appended-multiple.ulg); when ../shared is there, its recordings of other devices (wild/: the same
@@ -94,10 +94,15 @@ def recordings(broad: Path, wild: Path, ulog: Path, trials: list[str]) -> list[d
     return out
 
 
+METHOD = {"hand_states": False}   # --hand-states: NLS(hand_states=True) for every solve
+
+
 def solve(session, options: Options) -> dict:
+    from magyro.nls.method import NLS
+
     t0 = time.process_time()
     try:
-        cal = calibrate(session, options)
+        cal = calibrate(session, options, NLS(hand_states=METHOD["hand_states"]))
     except MagyroError as exc:
         return {"exit": exc.exit_code, "message": one_line(exc, None), "cpu_s": time.process_time() - t0}
     except Exception as exc:   # a defect, not a refusal: recorded as such, and the other recordings still run
@@ -281,8 +286,11 @@ def main(argv=None) -> None:
     ap.add_argument("--ulog", type=Path, default=SHARED / "ulog")
     ap.add_argument("--trials", default=DEFAULT_TRIALS, help="BROAD trials from --broad (comma-separated)")
     ap.add_argument("--only", help="run these recordings only (comma-separated names)")
+    ap.add_argument("--hand-states", action="store_true",
+                    help="solve with the hand's velocity as states (NLS(hand_states=True), nls/hand_states.py)")
     ap.add_argument("--out", help="write the record here (docs/numbers/accelerometer-real.json)")
     a = ap.parse_args(argv)
+    METHOD["hand_states"] = a.hand_states
     chosen = recordings(a.broad, a.wild, a.ulog, [t.strip() for t in a.trials.split(",") if t.strip()])
     if a.only:
         names = {n.strip() for n in a.only.split(",")}

@@ -23,6 +23,7 @@ def solve(
     force: bool = typer.Option(False, "--force", help="Solve even when the motion does not excite every parameter."),
     loss: str = typer.Option("l2", "--loss", help="Loss on the magnetometer residuals: l2, or huber (robust to spikes and local iron)."),
     hard_iron_walk: Optional[float] = typer.Option(None, "--hard-iron-walk", help="Experimental (nls): let the hard iron move, as a random walk of this density (magnetometer unit per sqrt(s), e.g. 1 for uT); for iron or a magnet on the board whose field drifts. See docs/real-data.md section 4 for where it helps and where it does not."),
+    hand_states: bool = typer.Option(True, "--hand-states/--no-hand-states", help="--method nls with the accelerometer: where the hand moved the device while it turned, its velocity is a state at every node, so that its acceleration is told from gravity (default); --no-hand-states weights the accelerometer by the hand's size instead (docs/accelerometer.md)."),
     time_offset: bool = typer.Option(True, "--time-offset/--no-time-offset", help="Estimate the magnetometer's lag behind the gyro (default) or fix it to 0."),
     keep_rests: bool = typer.Option(False, "--keep-rests", help="Keep the rests at both ends in the solve (default: trimmed, as the paper does)."),
     split_check: bool = typer.Option(False, "--split-check", help="Also calibrate each half of the recording alone and warn when they disagree beyond their std (about 2x the time)."),
@@ -41,7 +42,7 @@ def solve(
 ):
     """The joint calibration: magnetometer ellipsoid, gyro K_g, bias, misalignment, field, attitude.
 
-    --stride, --loss, --hard-iron-walk, --time-offset and --split-check apply to the nls method only.
+    --stride, --loss, --hard-iron-walk, --hand-states, --time-offset and --split-check apply to the nls method only.
     """
     from magyro.api import solve_file
     from magyro.options import Options
@@ -52,7 +53,8 @@ def solve(
                                         trim_rests=not keep_rests, split_check=split_check, max_std=bounds,
                                         repairs=Repairs.without(no_repair or []), accelerometer=accelerometer,
                                         gravity_m_s2=gravity)
-        cal = solve_file(session, options, method, {"stride": stride, "loss": loss, "hard_iron_walk": hard_iron_walk},
+        cal = solve_file(session, options, method, {"stride": stride, "loss": loss, "hard_iron_walk": hard_iron_walk,
+                                                     "hand_states": hand_states},
                          gyro_unit=gyro_unit,
                          mag_unit=mag_unit, output=output, history=history, history_plot=history_plot,
                          trajectory=trajectory)

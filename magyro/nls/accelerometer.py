@@ -267,7 +267,8 @@ def hand_autocorrelation(x: np.ndarray, used: np.ndarray, start: AccelerometerSt
     return tapered_autocorrelation(x[used], max_lag, share)
 
 
-def hand_spectrum(rho: np.ndarray, n: int, variance_m2_s4: float, interval_s: float) -> np.ndarray:
+def hand_spectrum(rho: np.ndarray, n: int, variance_m2_s4: float, interval_s: float,
+                  reach_m: float = HAND_REACH_M) -> np.ndarray:
     """The hand's spectrum over a white one's of the same variance at the n // 2 + 1 frequencies of an n-point
     transform (n > 2 max lag: no lag wraps around): that of the autocorrelation rho (lags 0, 1, ...; tapered, so
     never negative), capped where no hand could put it (`reach_cap`)."""
@@ -277,10 +278,10 @@ def hand_spectrum(rho: np.ndarray, n: int, variance_m2_s4: float, interval_s: fl
     if lag:
         kernel[n - lag :] = rho[1:][::-1]
     spectrum = np.fft.rfft(kernel).real
-    return np.minimum(spectrum, reach_cap(np.fft.rfftfreq(n, interval_s), variance_m2_s4, interval_s))
+    return np.minimum(spectrum, reach_cap(np.fft.rfftfreq(n, interval_s), variance_m2_s4, interval_s, reach_m))
 
 
-def reach_cap(f_hz: np.ndarray, variance_m2_s4: float, interval_s: float) -> np.ndarray:
+def reach_cap(f_hz: np.ndarray, variance_m2_s4: float, interval_s: float, reach_m: float = HAND_REACH_M) -> np.ndarray:
     """The most of the hand's spectrum (over a white one's of its variance per axis, `variance_m2_s4`) that a
     device held within HAND_REACH_M of where it is turned can have at the frequencies f_hz.
 
@@ -296,7 +297,7 @@ def reach_cap(f_hz: np.ndarray, variance_m2_s4: float, interval_s: float) -> np.
     hand-turned trials and 0.14-0.45 m in those that carry the device about (21, 30)."""
     if variance_m2_s4 <= 0:
         return np.full(np.shape(f_hz), np.inf)
-    return 4.0 * (2.0 * np.pi) ** 4 * np.asarray(f_hz) ** 3 * HAND_REACH_M**2 / (2.0 * variance_m2_s4 * interval_s)
+    return 4.0 * (2.0 * np.pi) ** 4 * np.asarray(f_hz) ** 3 * reach_m**2 / (2.0 * variance_m2_s4 * interval_s)
 
 
 def correlation_factor(rho: np.ndarray, variance_m2_s4: float, interval_s: float) -> float:

@@ -38,7 +38,8 @@ def residual_summary(problem: JointProblem, r: np.ndarray, session: Session, R: 
     `h` is the hard iron, or per magnetometer sample (n, 3) when it moves."""
     mag = magnetometer_residuals(r, problem.grid.stride)[problem.grid.sample_mask]
     gyro = gyro_residuals(r, problem.grid.stride)
-    n_res = mag.size + gyro.size + (3 * problem.n_int if problem.walk else 0)   # gap segments have no magnetometer residual
+    n_res = (mag.size + gyro.size + (3 * problem.n_int if problem.walk else 0)   # gap segments have no magnetometer residual
+             + (3 * problem.n_int if problem.hand else 0))                      # the hand's velocity steps: its states' own
     dof = n_res - problem.n_x
     return LeastSquaresFit(
         mag_rms_normalised=float(np.sqrt(np.mean(mag**2))),

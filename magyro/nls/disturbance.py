@@ -40,7 +40,7 @@ from magyro import so3
 from magyro.front.ellipsoid import calibrated_field
 from magyro.nls.reduction import Reduced
 from magyro.nls.hard_iron import hard_iron_at_samples
-from magyro.nls.interval import GLOBAL_SLICES, global_number
+from magyro.nls.interval import GLOBAL_SLICES, global_number, node_size
 from magyro.nls.problem import JointProblem, evaluate
 from magyro.result.parts import FieldDisturbance
 from magyro.session import Session
@@ -171,6 +171,8 @@ def disturbance_sensitivities(problem: JointProblem, x, p, reduced: Reduced, C_m
         J_node = L.reshape(m, s, 3, 3) @ (so3.skew(m_i) @ start)[:, None]    # d r / d phi_n, (m, s, 3, 3)
         if problem.walk:   # d r / d eta_n = -w field_scale I
             J_node = np.concatenate([J_node, -(w * field_scale).reshape(m, s, 1, 1) * np.eye(3)], axis=-1)
+        if problem.hand:   # the hand's velocity is not in the magnetometer's residuals
+            J_node = np.concatenate([J_node, np.zeros((m, s, 3, 3))], axis=-1)
         J_profiled = rows.reshape(m, s, 3, -1) - J_node @ W[n][:, None]     # (m, s, 3, n_theta)
         U = (np.swapaxes(J_profiled, -1, -2) @ L.reshape(m, s, 3, 3)).reshape(-1, G, 3)
         carries = grid.mag_weight[n].ravel() > 0
@@ -188,10 +190,11 @@ class ThetaRows:
     def __init__(self, problem: JointProblem, x, p):
         self.problem = problem
         self.rows = problem.magnetometer_jacobian_kernel   # J^T dense: its column-major values are J's rows
-        self.n_theta = self.rows.size_out(0)[0] - 2 * problem.B   # its theta: a prefix of the problem's
+        B = node_size(problem.walk)                        # its states: the problem's without the hand's
+        self.n_theta = self.rows.size_out(0)[0] - 2 * B    # its theta: a prefix of the problem's
         self.x_theta = np.asarray(x[: self.n_theta], dtype=float)
         self.g_values = problem.globals_of(p)[: self.rows.nnz_in(3)].astype(float)   # its globals: a prefix
-        self.states = np.vstack([np.zeros(problem.B), x[problem.n_theta :].reshape(-1, problem.B)])   # nodes 0..n_int
+        self.states = np.vstack([np.zeros(problem.B), x[problem.n_theta :].reshape(-1, problem.B)])[:, :B]   # nodes 0..n_int
         self.data = problem.data_of(p)[:, : self.rows.nnz_in(4)]   # its data: a prefix of each interval's
         self.maps = {}
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from magyro import so3
-from magyro.nls.accelerometer import hand_spectrum
+from magyro.nls.accelerometer import HAND_REACH_M, hand_spectrum
 from magyro.nls.interval import data_layout
 from magyro.nls.on_numpy import MapOnNumpy
 from magyro.nls.problem import JointProblem
@@ -33,7 +33,7 @@ from magyro.nls.reduction import Reduced
 
 def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, reduced: Reduced, information: np.ndarray,
                          hand_std_m_s2: np.ndarray, weights_hand_std_m_s2: np.ndarray,
-                         correlation: np.ndarray, variance_m2_s4: float) -> np.ndarray:
+                         correlation: np.ndarray, variance_m2_s4: float, reach_m: float = HAND_REACH_M) -> np.ndarray:
     """I^-1 Omega I^-1: what the hand's correlated acceleration adds to the corrections' covariance.
     `hand_std_m_s2` (n_int,) is s_h per interval as measured, `weights_hand_std_m_s2` the one the weights hold (I
     counts it: it is taken out again), `correlation` rho at lags 0, 1, ... intervals, its spectrum capped where no
@@ -46,7 +46,7 @@ def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, re
     counted = sensitivities * weights_hand_std_m_s2[:, None, None]
     n, L = len(U), len(correlation) - 1
     size = 1 << int(np.ceil(np.log2(n + L + 1)))
-    S = hand_spectrum(correlation, size, variance_m2_s4, float(np.median(problem.grid.interval_s)))
+    S = hand_spectrum(correlation, size, variance_m2_s4, float(np.median(problem.grid.interval_s)), reach_m)
     F = np.fft.rfft(U, size, axis=0)                              # (size/2 + 1, n_theta, 3)
     weights = np.full(len(S), 2.0)
     weights[0] = 1.0
@@ -67,22 +67,25 @@ def hand_sensitivities(problem: JointProblem, x, p, reduced: Reduced, hand_std_m
     from the accelerometer's own Jacobian kernel evaluated over every interval as the solve's kernels are
     (`on_numpy.MapOnNumpy`: through buffers, MAP_CHUNK intervals a piece), its sparse outputs put in place."""
     B, G = problem.B, problem.n_theta
-    W = np.concatenate([np.zeros((1, B, G)), reduced.Dinv_Hpt.reshape(problem.n_int, B, -1)[:-1]])
+    W_all = reduced.Dinv_Hpt.reshape(problem.n_int, B, -1)                  # nodes 1..n_int
+    W = np.concatenate([np.zeros((1, B, G)), W_all[:-1]])                    # each interval's first node
     theta, g = np.asarray(x[:G], dtype=float), problem.globals_of(p).astype(float)
     states = np.vstack([np.zeros(B), x[G:].reshape(-1, B)])                  # nodes 0..n_int
     data = problem.data_of(p)
     weight = data[:, data_offset(problem, "w_acc")]
     readout = np.linalg.inv(np.array(problem.accelerometer_function(theta, g)[0]))   # M: the hand reads as M C_i^m a
     kernel = problem.accelerometer_jacobian
-    places = [kernel.sparsity_out(i).get_triplet() for i in range(2)]          # (rows, columns) of each nonzero
+    places = [kernel.sparsity_out(i).get_triplet() for i in range(kernel.n_out())]   # (rows, columns) of each nonzero
     U = np.zeros((problem.n_int, G, 3))
 
     def piece(a: int, b: int, values) -> None:
-        J_theta, J_node = np.zeros((b - a, 3, G)), np.zeros((b - a, 3, B))
-        for dense, v, (rows, columns) in zip((J_theta, J_node), values, places):
-            dense[:, rows, columns] = v.reshape(b - a, len(rows))              # each interval's nonzeros, in order
+        dense = [np.zeros((b - a, 3, G))] + [np.zeros((b - a, 3, B)) for _ in range(kernel.n_out() - 1)]
+        for out, v, (rows, columns) in zip(dense, values, places):
+            out[:, rows, columns] = v.reshape(b - a, len(rows))                # each interval's nonzeros, in order
         n = slice(a, b)
-        J_profiled = J_theta - J_node @ W[n]
+        J_profiled = dense[0] - dense[1] @ W[n]
+        if problem.hand:   # the hand's states: the mean reads the next node's velocity too
+            J_profiled = J_profiled - dense[2] @ W_all[n]
         L = (weight[n] * hand_std_m_s2[n])[:, None, None] * (readout @ attitude_i_to_m(data[n], states[n]))  # (m, 3, 3)
         U[n] = np.swapaxes(J_profiled, -1, -2) @ L
     MapOnNumpy(problem, kernel, pieces=True)(x, p, piece)

@@ -100,11 +100,13 @@ def global_size(acc: bool = False) -> int:
     return sum(k for _, k in GLOBAL_LAYOUT + (ACC_GLOBAL_LAYOUT if acc else []))
 
 
-def data_layout(stride: int, L: int, walk: bool = False, acc: bool = False) -> list[tuple[str, int]]:
+def data_layout(stride: int, L: int, walk: bool = False, acc: bool = False, hand: bool = False) -> list[tuple[str, int]]:
+    """An interval's data, in order; with `hand` (the hand's velocity as states) its 1 / T, the velocity's decay
+    over the interval and the weight of its step."""
     return ([("Cbar", 9), ("qD", 4), ("w_int", 1), ("ymag", 3 * stride), ("wseg", stride), ("ymid", 3 * stride),
              ("dt", stride * L), ("ya", 3 * stride * L), ("yb", 3 * stride * L)] + ([("w_walk", 1)] if walk else [])
             + ([("yacc", 3 * stride), ("cacc", stride), ("w_acc", 1), ("yrest0", 3), ("wrest0", 1), ("yrest1", 3),
-                ("wrest1", 1)] if acc else []))
+                ("wrest1", 1)] if acc else []) + ([("hand", 3)] if hand else []))
 
 
 def unpack_accelerometer(theta, g):
@@ -165,17 +167,20 @@ def huber_scaled(r, threshold):
     return r * ca.if_else(outside, ca.sqrt(threshold * (2.0 * n_safe - threshold)) / n_safe, 1.0)
 
 
-def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool = False, acc: bool = False):
+def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool = False, acc: bool = False,
+                       hand: bool = False):
     """Whitened residuals of one interval: `stride` magnetometer samples, then the gyro mismatch, then (with a
     moving hard iron, `walk`) its random-walk step. A node's state s is phi (3), then eta (3) when `walk`:
-    the hard iron over the interval from the node is h + field_scale * eta_k."""
+    the hard iron over the interval from the node is h + field_scale * eta_k; then (with `hand`, the accelerometer's
+    hand as states) the hand's velocity v (3, m/s, frame i): the interval's mean acceleration is (v_k1 - v_k) / T,
+    read with gravity, and the velocity's Ornstein-Uhlenbeck step is the interval's last residuals."""
     S, h, K, eps, m_i, tau, Winv, w_mag, huber = unpack_globals(theta, g)
     phi_k, phi_k1 = s_k[:3], s_k1[:3]
     if walk:
         h = h + global_part(g, "field_scale") * s_k[3:6]
     o = 0
     parts = {}
-    for name, n in data_layout(stride, L, walk, acc):
+    for name, n in data_layout(stride, L, walk, acc, hand):
         parts[name] = d[o : o + n]
         o += n
     Cbar = ca.reshape(parts["Cbar"], 3, 3)
@@ -184,6 +189,10 @@ def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool =
     if acc:   # the interval's mean reading: sum_j c_j (y_j - M (g C_i^m(t_j) u^i + lever_j) - c), M and c taken out
         M, c, u_i, g_acc, lever_m = accelerometer_readout(theta, g)
         up_k = rotate_inverse(q_k, ca.mtimes(Cbar.T, u_i))   # C_i^m(t_k) u^i
+        if hand:   # gravity and the hand's mean acceleration, read together: C_i^m(t_j) (g u^i + (v_k1 - v_k) / T)
+            v = hand_slice(walk)
+            hand_i = (s_k1[v] - s_k[v]) * parts["hand"][0]
+            felt_k = rotate_inverse(q_k, ca.mtimes(Cbar.T, g_acc * u_i + hand_i))
         y_sum, up_sum, lever_sum, share_sum = ca.SX.zeros(3), ca.SX.zeros(3), ca.SX.zeros(3, 3), 0
     Q = ca.DM([1, 0, 0, 0])
     res = []
@@ -191,7 +200,7 @@ def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool =
         if acc:   # the reading and gravity's up at the segment start, weighted into the interval's sums
             share = parts["cacc"][i]
             y_sum += share * parts["yacc"][3 * i : 3 * i + 3]
-            up_sum += share * rotate_inverse(Q, up_k)
+            up_sum += share * rotate_inverse(Q, felt_k if hand else up_k)
             share_sum += share
         v = rotate_inverse(Q, n_k)  # C_i^m(t_j) m^i at the stamp; then back by the time offset
         w_mid = ca.mtimes(K, parts["ymid"][3 * i : 3 * i + 3]) + eps
@@ -216,18 +225,27 @@ def interval_residuals(theta, s_k, s_k1, g, d, stride: int, L: int, walk: bool =
     if walk:
         res.append((s_k1[3:6] - s_k[3:6]) * parts["w_walk"])
     if acc:
-        acc_mean = y_sum - ca.mtimes(M, g_acc * up_sum + ca.mtimes(lever_sum, lever_m)) - share_sum * c
+        felt_sum = up_sum if hand else g_acc * up_sum
+        acc_mean = y_sum - ca.mtimes(M, felt_sum + ca.mtimes(lever_sum, lever_m)) - share_sum * c
         res.append(acc_mean * parts["w_acc"])
         up_k1 = rotate_inverse(quat_exp(phi_k1), rotate_inverse(parts["qD"], ca.mtimes(Cbar.T, u_i)))   # at node k+1
         rest = lambda y, up: y - ca.mtimes(M, g_acc * up) - c
         res.append(rest(parts["yrest0"], up_k) * parts["wrest0"] + rest(parts["yrest1"], up_k1) * parts["wrest1"])
+    if hand:   # the hand's velocity: v_k1 = decay v_k + a white step of std 1 / w
+        v = hand_slice(walk)
+        res.append((s_k1[v] - parts["hand"][1] * s_k[v]) * parts["hand"][2])
     return ca.vertcat(*res)
+
+
+def hand_slice(walk: bool) -> slice:
+    """Where the hand's velocity sits in a node's states (after phi, and eta when the hard iron walks)."""
+    return slice(6, 9) if walk else slice(3, 6)
 
 
 KERNEL_NAMES = ("interval_residuals", "interval_gradient", "interval_jacobian")
 
 
-def interval_kernels(stride: int, L: int, n_theta: int, walk: bool = False):
+def interval_kernels(stride: int, L: int, n_theta: int, walk: bool = False, hand: bool = False):
     """The three per-interval SX kernels of a shape (`kernel_key`'s arguments): residuals; sum of squares and its
     gradient; the Jacobian J = d r / d (theta, s_k, s_k1), given as J^T densified (n_theta + 2 B rows, one column
     per residual) so that its column-major nonzeros are J's rows, each interval's J a C-ordered (residuals,
@@ -236,12 +254,12 @@ def interval_kernels(stride: int, L: int, n_theta: int, walk: bool = False):
     Hessian bit for bit): a Hessian at 360k samples took 0.86 s CPU with the products inside the kernel, 0.44 s
     so."""
     th = ca.SX.sym("theta", n_theta)
-    pk = ca.SX.sym("s_k", node_size(walk))
-    pk1 = ca.SX.sym("s_k1", node_size(walk))
+    pk = ca.SX.sym("s_k", node_size(walk, hand))
+    pk1 = ca.SX.sym("s_k1", node_size(walk, hand))
     acc = has_accelerometer(n_theta)
     g = ca.SX.sym("g", global_size(acc))
-    d = ca.SX.sym("d", sum(k for _, k in data_layout(stride, L, walk, acc)))
-    r = interval_residuals(th, pk, pk1, g, d, stride, L, walk, acc)
+    d = ca.SX.sym("d", sum(k for _, k in data_layout(stride, L, walk, acc, hand)))
+    r = interval_residuals(th, pk, pk1, g, d, stride, L, walk, acc, hand)
     ssq = ca.sumsqr(r)
     args = [th, pk, pk1, g, d]
     opts = kernel_options(acc)
@@ -328,46 +346,49 @@ def gauss_newton_products(compiled: bool = True):
     return fn
 
 
-def accelerometer_jacobian_kernel(stride: int, L: int, n_theta: int, walk: bool = False) -> ca.Function:
+def accelerometer_jacobian_kernel(stride: int, L: int, n_theta: int, walk: bool = False, hand: bool = False) -> ca.Function:
     """d r / d theta (3 x n_theta) and d r / d s_k (3 x B) of an interval's accelerometer mean residual (the hand's
-    sandwich, nls/hand_motion.py): its own small kernel, not the Gauss-Newton one's rows."""
+    sandwich, nls/hand_motion.py), and d r / d s_k1 with the hand's states: its own small kernel, not the
+    Gauss-Newton one's rows."""
     th = ca.SX.sym("theta", n_theta)
-    pk, pk1 = ca.SX.sym("s_k", node_size(walk)), ca.SX.sym("s_k1", node_size(walk))
+    pk, pk1 = ca.SX.sym("s_k", node_size(walk, hand)), ca.SX.sym("s_k1", node_size(walk, hand))
     g = ca.SX.sym("g", global_size(True))
-    d = ca.SX.sym("d", sum(k for _, k in data_layout(stride, L, walk, True)))
-    r = interval_residuals(th, pk, pk1, g, d, stride, L, walk, True)
+    d = ca.SX.sym("d", sum(k for _, k in data_layout(stride, L, walk, True, hand)))
+    r = interval_residuals(th, pk, pk1, g, d, stride, L, walk, True, hand)
     first = 3 * stride + 3 + (3 if walk else 0)
     mean = r[first : first + 3]
-    return ca.Function("interval_accelerometer_jacobian", [th, pk, pk1, g, d],
-                       [ca.jacobian(mean, th), ca.jacobian(mean, pk)], kernel_options(True))
+    outputs = [ca.jacobian(mean, th), ca.jacobian(mean, pk)] + ([ca.jacobian(mean, pk1)] if hand else [])
+    return ca.Function("interval_accelerometer_jacobian", [th, pk, pk1, g, d], outputs, kernel_options(True))
 
 
-def accelerometer_jacobian(stride: int, L: int, n_theta: int, walk: bool, compiled: bool = True) -> ca.Function:
+def accelerometer_jacobian(stride: int, L: int, n_theta: int, walk: bool, compiled: bool = True,
+                           hand: bool = False) -> ca.Function:
     """`accelerometer_jacobian_kernel`, compiled (installed, cached or compiled now) when `compiled`."""
-    key = kernel_key(stride, L, n_theta, walk)
+    key = kernel_key(stride, L, n_theta, walk, hand)
     cached = load_cached_kernel("interval_accelerometer_jacobian", key) if compiled else None
     if cached is not None:
         return cached
-    fn = accelerometer_jacobian_kernel(stride, L, n_theta, walk)
+    fn = accelerometer_jacobian_kernel(stride, L, n_theta, walk, hand)
     return compile_kernels([fn], key)[0] if compiled else fn
 
 
-def kernel_key(stride: int, L: int, n_theta: int, walk: bool) -> str:
+def kernel_key(stride: int, L: int, n_theta: int, walk: bool, hand: bool = False) -> str:
     """What determines the kernels completely (with the source of this module, see kernels.cache_digest)."""
-    return f"stride={stride} substeps={L} theta={n_theta}" + (" walk" if walk else "")
+    return f"stride={stride} substeps={L} theta={n_theta}" + (" walk" if walk else "") + (" hand" if hand else "")
 
 
-def kernel_set(stride: int, L: int, n_theta: int, walk: bool, compiled: bool = True) -> list[ca.Function]:
+def kernel_set(stride: int, L: int, n_theta: int, walk: bool, compiled: bool = True, hand: bool = False) -> list[ca.Function]:
     """The three interval kernels of a shape: compiled (installed with magyro, cached, or compiled now) when
     `compiled`, else the interpreted SX functions."""
-    key = kernel_key(stride, L, n_theta, walk)
+    key = kernel_key(stride, L, n_theta, walk, hand)
     cached = [load_cached_kernel(name, key) for name in KERNEL_NAMES] if compiled else [None]
     if all(k is not None for k in cached):  # compiled before: no symbolic build needed
         return cached
-    kernels = interval_kernels(stride, L, n_theta, walk)
+    kernels = interval_kernels(stride, L, n_theta, walk, hand)
     return compile_kernels(kernels, key) if compiled else kernels
 
 
-def node_size(walk: bool) -> int:
-    """Unknowns per node: the attitude correction phi (3), and the hard iron's walk eta (3) when it moves."""
-    return 6 if walk else 3
+def node_size(walk: bool, hand: bool = False) -> int:
+    """Unknowns per node: the attitude correction phi (3), the hard iron's walk eta (3) when it moves, the hand's
+    velocity (3) when it is a state."""
+    return 3 + (3 if walk else 0) + (3 if hand else 0)

@@ -29,6 +29,8 @@ class NLS:
     reweight_noise: bool = True      # robust variance-component step on the magnetometer noise
     trajectory: bool = False         # keep the solved attitude at the nodes (Calibration.trajectory)
     hard_iron_walk: float | None = None   # a moving hard iron: its random-walk density, magnetometer unit / sqrt(s)
+    hand_states: bool = True         # with the accelerometer and a hand that moved the device: the hand's velocity as
+                                     # states at the nodes (nls/hand_states.py); False: the interval means weighted by it
 
     def __post_init__(self):
         if self.loss not in LOSSES:

@@ -81,36 +81,38 @@ class JointProblem:
     """
 
     def __init__(self, grid: Grid, compiled: bool = True, estimate_time_offset: bool = True, huber: float | None = None,
-                 walk_density: float | None = None, accelerometer: bool = False):
+                 walk_density: float | None = None, accelerometer: bool = False, hand_prior=None):
         self.grid = grid
         self.compiled = compiled
         self.walk_density = walk_density
         self.huber = huber
         self.walk = walk = walk_density is not None
         self.accelerometer = acc = accelerometer
+        self.hand_prior = hand_prior          # `hand_states.HandPrior`: the hand's velocity as states (with acc)
+        self.hand = hand = hand_prior is not None and acc
         self.estimate_time_offset = estimate_time_offset
-        self.B = node_size(walk)
+        self.B = node_size(walk, hand)
         self.n_theta = N_GLOBAL + (1 if estimate_time_offset else 0) + (N_ACC_THETA if acc else 0)
         n, s, L = grid.nodes, grid.stride, grid.substeps
         self.n_int = n - 1
         self.n_glob_p = global_size(acc)
-        self.n_data = sum(k for _, k in data_layout(s, L, walk, acc))
+        self.n_data = sum(k for _, k in data_layout(s, L, walk, acc, hand))
         self.n_x = self.n_theta + self.B * self.n_int
         # The globals ride in leading columns of the data matrix, in slots whose every use is weighted by a weight
         # that is 0 there (the magnetometer and accelerometer samples), so those columns add nothing but zeros: then
         # the kernels' map reads the parameters reshaped whole, with no slice of them (a copy of every parameter in
         # every evaluation and 136 MB of index list and pattern at 360k samples)
         offsets, o = {}, 0
-        for name, k in data_layout(s, L, walk, acc):
+        for name, k in data_layout(s, L, walk, acc, hand):
             offsets[name], o = (o, k), o + k
         safe = [a + i for name in SAFE_SLOTS if name in offsets for a, k in [offsets[name]] for i in range(k)]
         self.n_lead = -(-self.n_glob_p // len(safe))
         self.global_positions = np.array([c * self.n_data + f for c in range(self.n_lead) for f in safe][: self.n_glob_p])
         self.n_p = self.n_data * (self.n_lead + self.n_int)
-        self.n_res_per_interval = 3 * s + 3 + (3 if walk else 0) + (6 if acc else 0)
+        self.n_res_per_interval = 3 * s + 3 + (3 if walk else 0) + (6 if acc else 0) + (3 if hand else 0)
 
-        self.kernel_key = kernel_key(s, L, self.n_theta, walk)
-        self.residual_kernel, self.gradient_kernel, self.jacobian_kernel = kernel_set(s, L, self.n_theta, walk, compiled)
+        self.kernel_key = kernel_key(s, L, self.n_theta, walk, hand)
+        self.residual_kernel, self.gradient_kernel, self.jacobian_kernel = kernel_set(s, L, self.n_theta, walk, compiled, hand)
         th = ca.SX.sym("theta", self.n_theta)
         g = ca.SX.sym("g", self.n_glob_p)
         S, h, K, eps, m_i, tau, _, _, _ = unpack_globals(th, g)
@@ -165,7 +167,7 @@ class JointProblem:
     def accelerometer_jacobian(self) -> ca.Function:
         """d r / d theta and d r / d s_k of each interval's accelerometer mean (interval.accelerometer_jacobian)."""
         g = self.grid
-        return accelerometer_jacobian(g.stride, g.substeps, self.n_theta, self.walk, self.compiled)
+        return accelerometer_jacobian(g.stride, g.substeps, self.n_theta, self.walk, self.compiled, self.hand)
 
     @cached_property
     def magnetometer_jacobian_kernel(self) -> ca.Function:
@@ -348,8 +350,10 @@ class JointProblem:
             columns["w_walk"] = lambda: (lin.field_scale / (self.walk_density * np.sqrt(g_.interval_s)))[:, None]
         if self.accelerometer:
             columns.update({k: (lambda v=v: v) for k, v in start.columns(acc_weight).items()})
+        if self.hand:
+            columns["hand"] = lambda: self.hand_prior.columns(g_.interval_s)
         o = 0
-        for name, k in data_layout(s, L, self.walk, self.accelerometer):
+        for name, k in data_layout(s, L, self.walk, self.accelerometer, self.hand):
             data[:, o : o + k] = columns[name]()
             o += k
         return out
@@ -417,11 +421,6 @@ def evaluate(fn: ca.Function, *args) -> list[np.ndarray]:
         buffer.set_res(i, memoryview(o))
     run()
     return out
-
-
-def but_first_column(M):
-    """M without its first column, by a split (no index list)."""
-    return ca.horzsplit(M, [0, 1, M.shape[1]])[1] if M.shape[1] > 1 else ca.MX(M.shape[0], 0)
 
 
 def but_last_column(M):

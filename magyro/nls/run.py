@@ -26,7 +26,9 @@ from magyro.nls.method import NLS
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.reduction import gauss_newton_decrement, reduce_hessian
 from magyro.nls.hand_motion import hand_covariance_term
-from magyro.nls.accelerometer import HAND_LIMIT_OF_G, HandMotion, hand_motion, hand_too_big, white_variance
+from magyro.nls.hand_states import hand_prior, hand_reach_m, interleave_hand, measured_hand, prior_information
+from magyro.nls.accelerometer import (HAND_LIMIT_OF_G, HandMotion, hand_detected, hand_motion, hand_too_big,
+                                      still_hand_weights, white_variance)
 from magyro.nls.solve import (build_problem, problem_parameters, residual_matrix, solve_passes,
                               solved_accelerometer_residuals, solved_excess)
 from magyro.nls.disturbance import disturbance_covariance
@@ -68,14 +70,21 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
             predicted_accuracy_gate(problem, prep, lin, options, always=True)
         raise SolverError(not_converged_message(sol, decrement))
     sol.stats["gauss_newton_decrement"] = decrement
+    hand = solved_hand_motion(problem, lin, sol) if problem.accelerometer else None
+    if hand is not None and states_take_the_hand(problem, lin, method, sol):
+        step("the hand's velocity as states: the least squares again")
+        problem, sol, reduced = solve_with_hand_states(problem, prep, lin, method, sol, hand)
     cov_theta, disturbance = disturbance_covariance(problem, sol.x, sol.p, reduced, solved_attitudes(problem, lin, sol.x),
                                                     prep.session)
-    hand = solved_hand_motion(problem, lin, sol) if problem.accelerometer else None
-    if hand is not None:
+    if problem.hand:
+        cov_theta = cov_theta + hand_states_term(problem, lin, sol, reduced)
+    elif hand is not None:
         cov_theta = cov_theta + hand_term(problem, lin, sol, reduced, hand)
     cal = assemble(problem, prep, grid, sol, reduced, method, time.perf_counter() - t_start, cov_theta, disturbance)
     if hand is not None:
         cal.accelerometer.hand_rms_m_s2 = float(np.sqrt(hand.variance_m2_s4))
+    if problem.hand:
+        cal.solver.details["hand_states"] = hand_state_details(problem, sol)
     acc_warnings = accelerometer_gate(cal, options)   # first: an accelerometer past its bound widens the gyro's std
     cal.warnings.extend(gate_warnings or solved_accuracy_gate(cal, options))
     cal.warnings.extend(acc_warnings)
@@ -108,6 +117,60 @@ def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced, hand: Han
     weights_hand = np.where(used, np.sqrt(np.maximum(held, 0.0)), 0.0)
     return hand_covariance_term(problem, sol.x, sol.p, reduced, reduced.information, hand.hand_std_m_s2,
                                 weights_hand, hand.correlation, hand.variance_m2_s4)
+
+
+def states_take_the_hand(problem: JointProblem, lin: Linearisation, method: NLS, sol) -> bool:
+    """Whether the hand's velocity becomes a state (`NLS.hand_states`): with the accelerometer, where the specific
+    force's size shows a hand (`accelerometer.hand_detected`); a device turned about itself keeps its white weights."""
+    return (method.hand_states and problem.accelerometer
+            and hand_detected(solved_excess(problem, lin.accelerometer, sol.x, sol.p), lin.accelerometer))
+
+
+def solve_with_hand_states(problem: JointProblem, prep: Prepared, lin: Linearisation, method: NLS, sol, hand: HandMotion):
+    """(the problem with the hand's velocity as states, its solution from `sol`, its reduced Hessian): the interval
+    means weighted by their white noise alone (nls/hand_states.py); refused (exit 1) when it does not converge."""
+    prior = hand_prior(hand.variance_m2_s4)
+    staged = JointProblem(problem.grid, compiled=problem.compiled, estimate_time_offset=problem.estimate_time_offset,
+                          huber=problem.huber, walk_density=problem.walk_density, accelerometer=True, hand_prior=prior)
+    weight = still_hand_weights(lin.accelerometer)
+    p = problem_parameters(staged, prep, lin, sol.sigma_mag, sol.tau0_s, sol.gyro_density, weight)
+    solver = staged.solver({"ipopt.max_iter": method.max_iter})
+    t0 = time.perf_counter()
+    try:
+        x, stats = staged.solve(solver, interleave_hand(problem, staged, sol.x), p)
+    finally:
+        staged.release_solver()
+    stats["iter_count"] = int(stats["iter_count"]) + int(sol.stats["iter_count"])
+    solved = dataclasses.replace(sol, x=x, p=p, stats=stats, passes=sol.passes + 1,
+                                 seconds=sol.seconds + time.perf_counter() - t0, residuals=None, acc_weight=weight)
+    reduced = reduce_hessian(solved_hessian(staged, solved), staged.n_theta, staged.B)
+    decrement = gauss_newton_decrement(reduced, staged.gradient_values(x, p))
+    if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
+        raise SolverError(not_converged_message(solved, decrement))
+    solved.stats["gauss_newton_decrement"] = decrement
+    return staged, solved, reduced
+
+
+def hand_states_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.ndarray:
+    """What the hand adds to the corrections' covariance when its velocity is a state: the hand the states and the
+    residuals hold (`hand_states.measured_hand`), its spectrum capped by the reach its integrated velocity shows,
+    correlated (`magyro.nls.hand_motion`, nothing counted as independent), less the share of the information that
+    the velocity's prior holds, which is no data (`hand_states.prior_information`)."""
+    used = sol.acc_weight > 0
+    r = residual_matrix(problem, sol.x, sol.p)
+    std, correlation, variance, reach = measured_hand(problem, lin.accelerometer, sol.x, sol.p,
+                                                      solved_accelerometer_residuals(problem, r, sol.acc_weight), used)
+    none = np.zeros(problem.n_int)
+    term = hand_covariance_term(problem, sol.x, sol.p, reduced, reduced.information, std, none, correlation, variance,
+                                reach)
+    info_inv = np.linalg.inv(reduced.information)
+    return term - info_inv @ prior_information(problem, reduced) @ info_inv
+
+
+def hand_state_details(problem: JointProblem, sol) -> dict:
+    """The hand's velocity process the states were solved with, and how far they say the hand took the device."""
+    prior = problem.hand_prior
+    return {"sigma_v_m_s": prior.sigma_v_m_s, "tau_s": prior.tau_s, "reach_m": hand_reach_m(problem, sol.x)}
 
 
 def not_converged_message(sol, decrement: float) -> str:

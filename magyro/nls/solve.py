@@ -250,14 +250,16 @@ def solved_accelerometer_residuals(problem: JointProblem, r: np.ndarray, weight:
 def accelerometer_reweighted(problem: JointProblem, lin: Linearisation, x: np.ndarray, p: np.ndarray, r: np.ndarray,
                              weight: np.ndarray):
     """(the accelerometer's interval weights measured at the solution x, p: the white noise's alone where the
-    specific force's size shows no hand, else from the solved residuals r; whether they moved)."""
-    if hand_detected(solved_excess(problem, lin.accelerometer, x, p), lin.accelerometer):
+    specific force's size shows no hand, else from the solved residuals r; whether they moved; whether a hand
+    moved the device)."""
+    hand = hand_detected(solved_excess(problem, lin.accelerometer, x, p), lin.accelerometer)
+    if hand:
         new = solved_hand_weights(solved_accelerometer_residuals(problem, r, weight), lin.accelerometer)
     else:
         new = still_hand_weights(lin.accelerometer)
     ok = (weight > 0) & (new > 0)
     moved = float(np.sqrt(np.mean(np.log(new[ok] / weight[ok]) ** 2))) if ok.any() else 0.0
-    return new, moved > ACC_REWEIGHT_TOLERANCE
+    return new, moved > ACC_REWEIGHT_TOLERANCE, hand
 
 
 @dataclass
@@ -315,8 +317,10 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
                 gyro_factor, mag_factor = 1.0, (1.0 if r is None else magnetometer_noise_factor(problem, r))
                 reweight = abs(mag_factor - 1.0) > NOISE_RESCALE_TOLERANCE
             moved = abs(tau - tau0) * max(abs(tau), abs(tau0)) > TIME_OFFSET_RELOOK_S2
-            new_acc, acc_moved = (accelerometer_reweighted(problem, lin, x, p, r, acc_weight) if problem.accelerometer
-                                  else (None, False))
+            new_acc, acc_moved, hand = (accelerometer_reweighted(problem, lin, x, p, r, acc_weight)
+                                        if problem.accelerometer else (None, False, False))
+            if hand and method.hand_states:
+                acc_moved = False   # the hand's velocity becomes a state after these passes (nls/hand_states.py)
             if n_pass == max_passes or not (moved or reweight or acc_moved):
                 return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, r, density, step, not reweight,
                                 acc_weight)

@@ -1,0 +1,122 @@
+"""The hand as states: its velocity at the nodes, an Ornstein-Uhlenbeck process (`NLS(hand_states=True)`).
+
+The accelerometer's interval means read gravity and the hand's acceleration together. Weighted as independent
+noise (nls/accelerometer.py) the hand's sway, which lasts seconds, counts as dozens of independent intervals,
+and the calibration follows it: on the simulated phone module its scale factors spread 8-13x their Cramer-Rao
+bound. Here the hand's velocity v (frame i, m/s) is a state at every node, the interval's mean acceleration is
+(v_k1 - v_k) / T and the velocity is an Ornstein-Uhlenbeck process
+
+    v_k1 = exp(-T / tau) v_k + w_k,     w_k ~ N(0, sigma_v^2 (1 - exp(-2 T / tau)) I),
+
+v_0 = 0 (the device still at the start). The interval means are then weighted by their white noise alone, and the
+hand is what the states take. The process's two numbers come from the first solve's hand
+(`accelerometer.hand_motion`): sigma_v = the hand's acceleration std per axis over 2 pi HAND_SWAY_HZ (a sway of that
+frequency), tau = HAND_TAU_S. benchmarks/accelerometer_hand_models.py measured the family against the simulator's
+hand (the sandwich, no solve): on the phone module K_a's std 563-757 ppm against 1142-1391 with independent
+weights, the gyro's std with the accelerometer 0.97x the one without.
+
+The std is the sandwich of that estimator under the hand it measured: the states' prior is no data, so its share
+of the information is taken out and the hand's measured correlation put in (`hand_states_covariance`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+HAND_SWAY_HZ = 0.1     # the hand's velocity std is its acceleration's over 2 pi times this
+HAND_TAU_S = 0.3       # the velocity's correlation time
+
+
+@dataclass(frozen=True)
+class HandPrior:
+    """The hand's velocity process: its std per axis (m/s) and correlation time (s)."""
+
+    sigma_v_m_s: float
+    tau_s: float = HAND_TAU_S
+
+    def columns(self, interval_s: np.ndarray) -> np.ndarray:
+        """(n_int, 3): each interval's 1 / T, the velocity's decay over it, the weight of its step."""
+        T = np.maximum(np.asarray(interval_s, dtype=float), 1e-9)
+        decay = np.exp(-T / self.tau_s)
+        step_std = self.sigma_v_m_s * np.sqrt(1.0 - decay**2)
+        return np.column_stack([1.0 / T, decay, 1.0 / step_std])
+
+
+def hand_prior(variance_m2_s4: float) -> HandPrior | None:
+    """The prior of a hand whose acceleration has this variance per axis; None for a still hand."""
+    if not variance_m2_s4 > 0:
+        return None
+    return HandPrior(float(np.sqrt(variance_m2_s4)) / (2.0 * np.pi * HAND_SWAY_HZ))
+
+
+def interleave_hand(problem_from, problem_to, x: np.ndarray) -> np.ndarray:
+    """A solution of `problem_from` (no hand states) as a start of `problem_to` (the same, with them): the hand's
+    velocity zero at every node."""
+    G, B0, B1 = problem_from.n_theta, problem_from.B, problem_to.B
+    out = np.zeros(problem_to.n_x)
+    out[:G] = x[:G]
+    out[G:].reshape(-1, B1)[:, :B0] = x[G:].reshape(-1, B0)
+    return out
+
+
+def prior_information(problem, reduced) -> np.ndarray:
+    """P (n_theta, n_theta): the profiled information the velocity's prior rows hold, sum_k w_k^2 D_k^T D_k with
+    D_k = W_k1 - decay_k W_k on the velocity, W_n node n's response to the corrections (reduced.Dinv_Hpt; node 0
+    fixed)."""
+    from magyro.nls.interval import hand_slice
+
+    B, G = problem.B, problem.n_theta
+    W = np.concatenate([np.zeros((1, B, G)), reduced.Dinv_Hpt.reshape(problem.n_int, B, G)])   # nodes 0..n_int
+    v = hand_slice(problem.walk)
+    cols = problem.hand_prior.columns(problem.grid.interval_s)
+    D = (W[1:, v] - cols[:, 1, None, None] * W[:-1, v]) * cols[:, 2, None, None]               # (n_int, 3, G)
+    flat = D.reshape(-1, G)
+    return flat.T @ flat
+
+
+def hand_velocity(problem, x: np.ndarray) -> np.ndarray:
+    """(n_int + 1, 3) the hand's velocity at the nodes (frame i, m/s), node 0's zero."""
+    from magyro.nls.interval import hand_slice
+
+    states = x[problem.n_theta :].reshape(-1, problem.B)[:, hand_slice(problem.walk)]
+    return np.vstack([np.zeros(3), states])
+
+
+def hand_reach_m(problem, x: np.ndarray) -> float:
+    """The std (m, RMS over the axes) of the device's position, the hand's velocity states integrated: how far the
+    hand took it from where it was turned (at most HAND_REACH_M)."""
+    from magyro.nls.accelerometer import HAND_REACH_M
+
+    v = hand_velocity(problem, x)
+    position = np.cumsum(0.5 * (v[1:] + v[:-1]) * problem.grid.interval_s[:, None], axis=0)
+    return float(min(np.sqrt(np.mean(position.var(axis=0))), HAND_REACH_M))
+
+
+def hand_in_frame_i(problem, x: np.ndarray, p: np.ndarray, residuals: np.ndarray) -> np.ndarray:
+    """(n_int, 3) the hand's mean acceleration in each interval, frame i (m/s^2): the states' (v_k1 - v_k) / T plus
+    what the accelerometer's unweighted residuals (n_int, 3; y = M C_i^m a + ...) leave, C_m^i A r. The hand and the
+    white noise, whatever the states took of it."""
+    from magyro.nls.hand_motion import attitude_i_to_m
+
+    G = problem.n_theta
+    v = hand_velocity(problem, x)
+    A = np.array(problem.accelerometer_function(x[:G], problem.globals_of(p))[0])
+    states = np.vstack([np.zeros(problem.B), x[G:].reshape(-1, problem.B)])
+    C_i_m = attitude_i_to_m(problem.data_of(p), states[:-1])
+    return (v[1:] - v[:-1]) / problem.grid.interval_s[:, None] + np.einsum("kji,kj->ki", C_i_m, residuals @ A.T)
+
+
+def measured_hand(problem, start, x: np.ndarray, p: np.ndarray, residuals: np.ndarray, used: np.ndarray):
+    """(hand_std_m_s2 (n_int,), autocorrelation, variance per axis, reach m) of the hand the states and the residuals
+    hold together (`hand_in_frame_i`), measured as `accelerometer.hand_motion` measures the first solve's: its local
+    size over HAND_SIZE_WINDOW_S less the white noise, its Bartlett-tapered autocorrelation, isotropic."""
+    from magyro.nls.accelerometer import (HAND_SIZE_WINDOW_S, hand_autocorrelation, intervals_in, local_mean_square,
+                                          white_variance)
+
+    z = np.where(used[:, None], hand_in_frame_i(problem, x, p, residuals), 0.0)
+    size = np.sqrt(np.sum(z**2, axis=1) / 3.0)
+    local = local_mean_square(size, used, intervals_in(HAND_SIZE_WINDOW_S, start))
+    hand = np.where(used, np.maximum(local - white_variance(start), 0.0), 0.0)
+    variance = float(np.mean(hand[used])) if used.any() else 0.0
+    return np.sqrt(hand), hand_autocorrelation(z, used, start), variance, hand_reach_m(problem, x)
