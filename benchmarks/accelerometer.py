@@ -1,7 +1,7 @@
 """The accelerometer in the joint least squares (issue 26): the targets it is measured against, one table each.
 
     python benchmarks/accelerometer.py real [--session data/broad-02.parquet] [--out docs/numbers/accelerometer-broad-02.json]
-    python benchmarks/accelerometer.py sim [--problem paper-table1-acc] [--still] [--hand-states] [--seeds 20] [--jobs 2] [--out RECORD]
+    python benchmarks/accelerometer.py sim [--problem paper-table1-acc] [--still] [--no-hand-states] [--seeds 20] [--jobs 2] [--out RECORD]
 
 `real`: the calibrated accelerometer's |f| at the rests against g (each rest of the session, found by the rests'
 own rule), the split halves (each half solved alone with --force; RMS z of the accelerometer's 12 parameters and of
@@ -108,7 +108,7 @@ def one_seed(args):
             calibrate(session, Options(accelerometer=False)), truth)
 
 
-def sim(problem: str, seeds: int, jobs: int, still: bool = False, hand_states: bool = False) -> dict:
+def sim(problem: str, seeds: int, jobs: int, still: bool = False, hand_states: bool = True) -> dict:
     from magyro.result.calibration import Calibration
     from magyro.studies.scenario import load_problem
 
@@ -178,8 +178,9 @@ def main(argv=None) -> None:
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--still", action="store_true", help="sim: the problem's hand translation set to 0 (turned about itself)")
-    ap.add_argument("--hand-states", action="store_true",
-                    help="sim: solve with the hand's velocity as states (NLS(hand_states=True), nls/hand_states.py)")
+    ap.add_argument("--no-hand-states", dest="hand_states", action="store_false",
+                    help="sim: weight the accelerometer by the hand instead of taking its velocity as states "
+                         "(NLS(hand_states=False), magyro solve --no-hand-states)")
     ap.add_argument("--out", help="write the record here (docs/numbers/accelerometer-*.json)")
     a = ap.parse_args(argv)
     command = "python benchmarks/accelerometer.py " + " ".join(argv or [])

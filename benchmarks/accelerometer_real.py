@@ -2,7 +2,7 @@
 
     python benchmarks/accelerometer_real.py [--only NAME,NAME] [--broad ../shared/data/broad] [--wild ../shared/data/wild]
                                            [--ulog ../shared/data/ulog] [--trials 03,05,09,21,30,32,34,36]
-                                           [--hand-states] [--out docs/numbers/accelerometer-real.json]
+                                           [--no-hand-states] [--out docs/numbers/accelerometer-real.json]
 
 The recordings: the shipped BROAD trials 02 and 07 (data/), the shipped x-io board (data/wild/fusion) and PX4 log
 (data/px4-sample-appended-multiple.ulg); when ../shared is there, its recordings of other devices (wild/: the same
@@ -94,7 +94,7 @@ def recordings(broad: Path, wild: Path, ulog: Path, trials: list[str]) -> list[d
     return out
 
 
-METHOD = {"hand_states": False}   # --hand-states: NLS(hand_states=True) for every solve
+METHOD = {"hand_states": True}   # --no-hand-states: NLS(hand_states=False) for every solve
 
 
 def solve(session, options: Options) -> dict:
@@ -286,8 +286,9 @@ def main(argv=None) -> None:
     ap.add_argument("--ulog", type=Path, default=SHARED / "ulog")
     ap.add_argument("--trials", default=DEFAULT_TRIALS, help="BROAD trials from --broad (comma-separated)")
     ap.add_argument("--only", help="run these recordings only (comma-separated names)")
-    ap.add_argument("--hand-states", action="store_true",
-                    help="solve with the hand's velocity as states (NLS(hand_states=True), nls/hand_states.py)")
+    ap.add_argument("--no-hand-states", dest="hand_states", action="store_false",
+                    help="weight the accelerometer by the hand instead of taking its velocity as states "
+                         "(NLS(hand_states=False), magyro solve --no-hand-states)")
     ap.add_argument("--out", help="write the record here (docs/numbers/accelerometer-real.json)")
     a = ap.parse_args(argv)
     METHOD["hand_states"] = a.hand_states

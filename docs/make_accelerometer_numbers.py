@@ -47,7 +47,10 @@ def sim_table(r: dict) -> str:
     if bound:
         header += ["CRLB", "actual/CRLB", "independent weights"]
         tail += (" CRLB: the Cramer-Rao bound with the hand as noise of its known ensemble (at seed 0's session); "
-                 "independent weights: what the solve's weighting reaches with the same hand (not a bound).")
+                 "independent weights: what weighting every interval as independent, by its hand, reaches with the "
+                 "same hand (not a bound; `--no-hand-states` before its correlation factor)." + (
+                     " Solved with the hand's velocity as states (the default)." if r.get("hand_states") else
+                     " Solved with the hand as weights (`--no-hand-states`, before the hand as states)."))
     return head + table(header, rows, left=(0,)) + tail
 
 

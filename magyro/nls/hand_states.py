@@ -1,22 +1,23 @@
-"""The hand as states: its velocity at the nodes, an Ornstein-Uhlenbeck process (`NLS(hand_states=True)`).
+"""The hand as states: its velocity at the nodes, an Ornstein-Uhlenbeck process (`NLS(hand_states=True)`, the default).
 
 The accelerometer's interval means read gravity and the hand's acceleration together. Weighted as independent
-noise (nls/accelerometer.py) the hand's sway, which lasts seconds, counts as dozens of independent intervals,
-and the calibration follows it: on the simulated phone module its scale factors spread 8-13x their Cramer-Rao
-bound. Here the hand's velocity v (frame i, m/s) is a state at every node, the interval's mean acceleration is
-(v_k1 - v_k) / T and the velocity is an Ornstein-Uhlenbeck process
+noise (nls/accelerometer.py) the hand's sway, which lasts seconds, counts as dozens of independent intervals, and
+the calibration follows it: on the simulated phone module its scale factors spread 8-13x their Cramer-Rao bound,
+and on BROAD's fast trials they came out 4-30 % from 1, many std. Here the hand's velocity v (frame i, m/s) is a
+state at every node, the interval's mean acceleration is (v_k1 - v_k) / T and the velocity is an
+Ornstein-Uhlenbeck process
 
     v_k1 = exp(-T / tau) v_k + w_k,     w_k ~ N(0, sigma_v^2 (1 - exp(-2 T / tau)) I),
 
 v_0 = 0 (the device still at the start). The interval means are then weighted by their white noise alone, and the
 hand is what the states take. The process's two numbers come from the first solve's hand
-(`accelerometer.hand_motion`): sigma_v = the hand's acceleration std per axis over 2 pi HAND_SWAY_HZ (a sway of that
-frequency), tau = HAND_TAU_S. benchmarks/accelerometer_hand_models.py measured the family against the simulator's
-hand (the sandwich, no solve): on the phone module K_a's std 563-757 ppm against 1142-1391 with independent
-weights, the gyro's std with the accelerometer 0.97x the one without.
+(`accelerometer.hand_motion`): sigma_v = the hand's acceleration std per axis over 2 pi HAND_SWAY_HZ (a sway of
+that frequency), tau = HAND_TAU_S (benchmarks/accelerometer_hand_models.py measured the family against the
+simulator's hand; docs/accelerometer.md, "The hand as states", what the solves give).
 
-The std is the sandwich of that estimator under the hand it measured: the states' prior is no data, so its share
-of the information is taken out and the hand's measured correlation put in (`hand_states_covariance`).
+The std is the sandwich of that estimator under the hand it measured (`measured_hand`): the states' prior is no
+data, so its share of the information is taken out (`prior_information`) and the hand's measured correlation put
+in (nls/hand_motion.py).
 """
 from __future__ import annotations
 
