@@ -81,6 +81,8 @@ def test_a_hand_swaying_the_phone_module_is_told_from_gravity(phone_session):
     moved = float(np.sqrt(np.mean(truth_position(problem, session.t_gyro_s, 3).var(axis=0))))
     assert 0.5 * moved < details["reach_m"] < 2.0 * moved, (details, moved)
     assert "hand_states" not in weighted.solver.details
+    assert "the hand's velocity solved at every node" in states.table()
+    assert "the hand's velocity solved at every node" not in weighted.table()
 
 
 def test_a_device_turned_about_itself_keeps_its_white_weights(phone_session):

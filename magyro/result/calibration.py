@@ -174,6 +174,11 @@ class Calibration:
         lines.append("magnetometer R diagonal  " + "  ".join(f"{self.R[i, i]:.5g} +/- {s.R[i][i]:.2g}" for i in range(3)))
         if self.accelerometer is not None:
             lines.extend(self.accelerometer.table_lines())
+        hand = self.solver.details.get("hand_states")
+        if hand:
+            lines.append(f"the hand's velocity solved at every node (prior std {significant(hand['sigma_v_m_s'])} m/s, "
+                         f"correlation {hand['tau_s']:g} s; integrated, a position std of {significant(hand['reach_m'])} "
+                         "m); --no-hand-states weights the hand as noise instead")
         if self.time_offset_estimated:
             lines.append(f"magnetometer lag behind the gyro (ms, negative: it leads)  {1e3 * self.time_offset_s:+.2f} +/- "
                          f"{1e3 * s.time_offset_s:.2f}")
