@@ -1,6 +1,6 @@
 """The accelerometer in the joint least squares (issue 26): the targets it is measured against, one table each.
 
-    python benchmarks/accelerometer.py real [--session data/broad-02.parquet] [--out docs/numbers/accelerometer-broad-02.json]
+    python benchmarks/accelerometer.py real [--session data/broad-02.parquet] [--no-hand-states] [--out docs/numbers/accelerometer-broad-02.json]
     python benchmarks/accelerometer.py sim [--problem paper-table1-acc] [--still] [--no-hand-states] [--seeds 20] [--jobs 2] [--out RECORD]
 
 `real`: the calibrated accelerometer's |f| at the rests against g (each rest of the session, found by the rests'
@@ -52,21 +52,24 @@ def acc_stds(acc) -> np.ndarray:
     return np.concatenate([[acc.std_K_a[i, j] for i, j in UPPER], acc.std_bias_m_s2, acc.std_misalignment_deg])
 
 
-def timed(session, options):
+def timed(session, options, method=None):
     t0 = time.process_time()
-    cal = calibrate(session, options)
+    cal = calibrate(session, options, method)
     return cal, time.process_time() - t0
 
 
-def real(path: str) -> dict:
+def real(path: str, hand_states: bool = True) -> dict:
+    from magyro.nls.method import NLS
+
+    method = NLS(hand_states=hand_states)
     s = load_session(path)
     g = Options().gravity_m_s2
-    timed(s, Options(accelerometer=True))   # compile and cache the kernels before timing
+    timed(s, Options(accelerometer=True), method)   # compile and cache the kernels before timing
     t_base, t_acc = [], []
     for _ in range(3):
         base, t = timed(s, Options(accelerometer=False))
         t_base.append(t)
-        cal, t = timed(s, Options(accelerometer=True))
+        cal, t = timed(s, Options(accelerometer=True), method)
         t_acc.append(t)
     acc = cal.accelerometer
     rests = []
@@ -75,7 +78,7 @@ def real(path: str) -> dict:
         rests.append({"span_s": [float(a), float(b)],
                       "f_over_g": float(np.linalg.norm(acc.apply(s.acc_m_s2[keep]), axis=1).mean() / g),
                       "raw_over_g": float(np.linalg.norm(s.acc_m_s2[keep], axis=1).mean() / g)})
-    halves = [calibrate(s.within(*span), Options(accelerometer=True, force=True)) for span in half_spans_s(s)]
+    halves = [calibrate(s.within(*span), Options(accelerometer=True, force=True), method) for span in half_spans_s(s)]
     za = (acc_values(halves[0].accelerometer, acc.C_b_a) - acc_values(halves[1].accelerometer, acc.C_b_a)) / np.hypot(
         acc_stds(halves[0].accelerometer), acc_stds(halves[1].accelerometer))
     v, sd = [gyro_values(h, cal.C_b_m) for h in halves], [gyro_stds(h) for h in halves]
@@ -179,13 +182,13 @@ def main(argv=None) -> None:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--still", action="store_true", help="sim: the problem's hand translation set to 0 (turned about itself)")
     ap.add_argument("--no-hand-states", dest="hand_states", action="store_false",
-                    help="sim: weight the accelerometer by the hand instead of taking its velocity as states "
+                    help="weight the accelerometer by the hand instead of taking its velocity as states "
                          "(NLS(hand_states=False), magyro solve --no-hand-states)")
     ap.add_argument("--out", help="write the record here (docs/numbers/accelerometer-*.json)")
     a = ap.parse_args(argv)
     command = "python benchmarks/accelerometer.py " + " ".join(argv or [])
     if a.what == "real":
-        record = real(a.session)
+        record = real(a.session, a.hand_states)
         print_real(record)
         record["provenance"] = provenance(command)
     else:

@@ -10,7 +10,7 @@ Ornstein-Uhlenbeck process
     v_k1 = exp(-T / tau) v_k + w_k,     w_k ~ N(0, sigma_v^2 (1 - exp(-2 T / tau)) I),
 
 v_0 = 0 (the device still at the start). The interval means are then weighted by their white noise alone, and the
-hand is what the states take. The process's two numbers come from the first solve's hand
+hand is what the states take. The process's two numbers come from the first pass's hand
 (`accelerometer.hand_motion`): sigma_v = the hand's acceleration std per axis over 2 pi HAND_SWAY_HZ (a sway of
 that frequency), tau = HAND_TAU_S (benchmarks/accelerometer_hand_models.py measured the family against the
 simulator's hand; docs/accelerometer.md, "The hand as states", what the solves give).

@@ -27,7 +27,7 @@ from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.reduction import gauss_newton_decrement, reduce_hessian
 from magyro.nls.hand_motion import hand_covariance_term
 from magyro.nls.hand_states import hand_prior, hand_reach_m, interleave_hand, measured_hand, prior_information
-from magyro.nls.accelerometer import (HAND_LIMIT_OF_G, HandMotion, hand_detected, hand_motion, hand_too_big,
+from magyro.nls.accelerometer import (HAND_LIMIT_OF_G, HandMotion, hand_motion, hand_too_big,
                                       still_hand_weights, white_variance)
 from magyro.nls.solve import (build_problem, problem_parameters, residual_matrix, solve_passes,
                               solved_accelerometer_residuals, solved_excess)
@@ -71,7 +71,7 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
         raise SolverError(not_converged_message(sol, decrement))
     sol.stats["gauss_newton_decrement"] = decrement
     hand = solved_hand_motion(problem, lin, sol) if problem.accelerometer else None
-    if hand is not None and states_take_the_hand(problem, lin, method, sol):
+    if sol.hand_found:
         step("the hand's velocity as states: the least squares again")
         problem, sol, reduced = solve_with_hand_states(problem, prep, lin, method, sol, hand)
     cov_theta, disturbance = disturbance_covariance(problem, sol.x, sol.p, reduced, solved_attitudes(problem, lin, sol.x),
@@ -119,32 +119,20 @@ def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced, hand: Han
                                 weights_hand, hand.correlation, hand.variance_m2_s4)
 
 
-def states_take_the_hand(problem: JointProblem, lin: Linearisation, method: NLS, sol) -> bool:
-    """Whether the hand's velocity becomes a state (`NLS.hand_states`): with the accelerometer, where the specific
-    force's size shows a hand (`accelerometer.hand_detected`); a device turned about itself keeps its white weights."""
-    return (method.hand_states and problem.accelerometer
-            and hand_detected(solved_excess(problem, lin.accelerometer, sol.x, sol.p), lin.accelerometer))
-
-
 def solve_with_hand_states(problem: JointProblem, prep: Prepared, lin: Linearisation, method: NLS, sol, hand: HandMotion):
-    """(the problem with the hand's velocity as states, its solution from `sol`, its reduced Hessian): the interval
-    means weighted by their white noise alone (nls/hand_states.py); refused (exit 1) when it does not converge."""
-    prior = hand_prior(hand.variance_m2_s4)
+    """(the problem with the hand's velocity as states, its solution from where `sol`, the first pass of the one
+    without them, left off, its reduced Hessian): the interval means weighted by their white noise alone
+    (nls/hand_states.py), the passes going on (`solve_passes`); refused (exit 1) when it does not converge."""
     staged = JointProblem(problem.grid, compiled=problem.compiled, estimate_time_offset=problem.estimate_time_offset,
-                          huber=problem.huber, walk_density=problem.walk_density, accelerometer=True, hand_prior=prior)
-    weight = still_hand_weights(lin.accelerometer)
-    p = problem_parameters(staged, prep, lin, sol.sigma_mag, sol.tau0_s, sol.gyro_density, weight)
-    solver = staged.solver({"ipopt.max_iter": method.max_iter})
-    t0 = time.perf_counter()
-    try:
-        x, stats = staged.solve(solver, interleave_hand(problem, staged, sol.x), p)
-    finally:
-        staged.release_solver()
-    stats["iter_count"] = int(stats["iter_count"]) + int(sol.stats["iter_count"])
-    solved = dataclasses.replace(sol, x=x, p=p, stats=stats, passes=sol.passes + 1,
-                                 seconds=sol.seconds + time.perf_counter() - t0, residuals=None, acc_weight=weight)
+                          huber=problem.huber, walk_density=problem.walk_density, accelerometer=True,
+                          hand_prior=hand_prior(hand.variance_m2_s4))
+    sigma_mag, density, tau0, x = sol.following
+    start = dataclasses.replace(sol, x=interleave_hand(problem, staged, x), sigma_mag=sigma_mag, gyro_density=density,
+                                tau0_s=tau0, acc_weight=still_hand_weights(lin.accelerometer))
+    solved = solve_passes(staged, prep, lin, method, level_estimator(staged, prep, lin), start)
+    solved.passes += sol.passes
     reduced = reduce_hessian(solved_hessian(staged, solved), staged.n_theta, staged.B)
-    decrement = gauss_newton_decrement(reduced, staged.gradient_values(x, p))
+    decrement = gauss_newton_decrement(reduced, staged.gradient_values(solved.x, solved.p))
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
         raise SolverError(not_converged_message(solved, decrement))
     solved.stats["gauss_newton_decrement"] = decrement

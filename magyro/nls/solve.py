@@ -262,6 +262,13 @@ def accelerometer_reweighted(problem: JointProblem, lin: Linearisation, x: np.nd
     return new, moved > ACC_REWEIGHT_TOLERANCE, hand
 
 
+def shifted_to(x: np.ndarray, tau0: float, tau: float) -> np.ndarray:
+    """x with its time-offset correction about tau instead of tau0: the same tau."""
+    out = np.array(x, dtype=float)
+    out[N_GLOBAL] += (tau0 - tau) / TIME_OFFSET_SCALE_S
+    return out
+
+
 @dataclass
 class Solution:
     """The solver's point, the parameters it was solved with, and how it got there."""
@@ -278,6 +285,8 @@ class Solution:
     variance: object = None                # the last `variance.VarianceComponents` step, when the levels were estimated
     levels_settled: bool = True            # False: the estimated levels still moved on the last pass
     acc_weight: np.ndarray | None = None   # the accelerometer's interval weights p was made with
+    hand_found: bool = False               # stopped after its first pass: a hand, whose velocity becomes a state
+    following: tuple | None = None         # (sigma_mag, gyro density, tau0, x) the next solve starts from
 
 
 VARIANCE_TOLERANCE = 0.05   # estimated levels are settled when the last step moved each by less than this
@@ -285,20 +294,29 @@ MAX_VARIANCE_PASSES = 12    # passes when the levels are estimated (each a warm 
 
 
 def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, method: NLS,
-                 variance_step=None) -> Solution:
+                 variance_step=None, start: Solution | None = None) -> Solution:
     """IPOPT, then warm re-solves: new time-offset look-up, re-weighted noise levels.
 
     With rests (or given levels) at most two re-solves, the magnetometer re-weighted by its residuals'
     robust scale. With a `variance_step` (noise levels that were guesses, `magyro.nls.variance`) the
     levels are estimated: re-solved until a step moves neither by more than VARIANCE_TOLERANCE.
-    `variance_step(x, r, sigma_mag, density, tau0_s)` returns the step's factors on the two levels."""
+    `variance_step(x, r, sigma_mag, density, tau0_s)` returns the step's factors on the two levels.
+
+    Where a hand moved the device and its velocity is to become a state (`NLS.hand_states`), the first pass is all
+    this solve does (`Solution.hand_found`; its next levels in `following`). From a `start` (that solve's
+    `following`, its x laid out for this problem, and the weights `start.acc_weight`) the passes go on from there,
+    counting its iterations and time."""
     solver = problem.solver({"ipopt.max_iter": method.max_iter})
-    sigma_mag, density, tau0 = prep.sigma_mag, prep.gyro_density, lin.time_offset_s
-    acc_weight = None if lin.accelerometer is None else lin.accelerometer.weight
+    if start is None:
+        sigma_mag, density, tau0 = prep.sigma_mag, prep.gyro_density, lin.time_offset_s
+        acc_weight = None if lin.accelerometer is None else lin.accelerometer.weight
+        x, seconds, iterations = np.zeros(problem.n_x), 0.0, 0
+    else:
+        sigma_mag, density, tau0 = start.sigma_mag, start.gyro_density, start.tau0_s
+        acc_weight, x, seconds, iterations = start.acc_weight, start.x, start.seconds, int(start.stats["iter_count"])
     estimating = variance_step is not None
     max_passes = MAX_VARIANCE_PASSES if estimating else MAX_PASSES
-    x = np.zeros(problem.n_x)
-    seconds, iterations, step = 0.0, 0, None
+    step = None
     try:
         for n_pass in range(1, max_passes + 1):
             p = problem_parameters(problem, prep, lin, sigma_mag, tau0, density, acc_weight)
@@ -318,16 +336,20 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
                 reweight = abs(mag_factor - 1.0) > NOISE_RESCALE_TOLERANCE
             moved = abs(tau - tau0) * max(abs(tau), abs(tau0)) > TIME_OFFSET_RELOOK_S2
             new_acc, acc_moved, hand = (accelerometer_reweighted(problem, lin, x, p, r, acc_weight)
-                                        if problem.accelerometer else (None, False, False))
-            if hand and method.hand_states:
-                acc_moved = False   # the hand's velocity becomes a state after these passes (nls/hand_states.py)
+                                        if problem.accelerometer and not problem.hand else (None, False, False))
+            if hand and method.hand_states:   # the hand's velocity becomes a state (nls/hand_states.py)
+                following = (sigma_mag * mag_factor if reweight else sigma_mag, density * gyro_factor if reweight
+                             else density, tau if moved and problem.estimate_time_offset else tau0,
+                             shifted_to(x, tau0, tau) if moved and problem.estimate_time_offset else x)
+                return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, r, density, step, not reweight,
+                                acc_weight, True, following)
             if n_pass == max_passes or not (moved or reweight or acc_moved):
                 return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, r, density, step, not reweight,
                                 acc_weight)
             if acc_moved:
                 acc_weight = new_acc
             if moved and problem.estimate_time_offset:
-                x[N_GLOBAL] += (tau0 - tau) / TIME_OFFSET_SCALE_S  # same tau, now about the new tau0
+                x = shifted_to(x, tau0, tau)
                 tau0 = tau
             if reweight:
                 sigma_mag *= mag_factor
