@@ -366,21 +366,21 @@ def local_mean_square(x: np.ndarray, used: np.ndarray, window: int) -> np.ndarra
 def hand_motion(excess: np.ndarray, weight: np.ndarray, start: AccelerometerStart, residuals: np.ndarray) -> HandMotion:
     """The hand's acceleration at the solution, for the std (nls/hand_motion.py).
 
-    Its size from the solved residuals (n_int, 3): its variance per axis is their mean square over
-    HAND_SIZE_WINDOW_S less the white part. Over a second a slow sway's square swings from zero to twice its mean
-    and the std counted too little of it (paper-table1-acc, 12 seeds: the reported std 0.22-0.79 of the actual
-    spread with 1 s, 0.44-1.4 with 30 s; the ensemble's own size gives 0.55-1.85).
-    Its autocorrelation from the specific force's size (`specific_force_excess`, n_int), the hand's acceleration
-    along gravity, which no tilt absorbs (the residuals' lose the sway across gravity that the attitudes take up),
-    over the hand's share of its variance (`tapered_autocorrelation`), the hand taken as isotropic."""
+    Its size from the solved residuals (n_int, 3), `hand_size`; its autocorrelation (`tapered_autocorrelation`,
+    isotropic) from the specific force's size (`specific_force_excess`): the hand along gravity, no tilt absorbs it."""
     used = weight > 0
-    white = white_variance(start)
-    size = np.sqrt(np.sum(residuals**2, axis=1) / 3.0)
-    local = local_mean_square(size, used, intervals_in(HAND_SIZE_WINDOW_S, start))
-    hand = np.where(used, np.maximum(local - white, 0.0), 0.0)
+    hand, variance = hand_size(residuals, used, start)
     e = np.where(used, excess - (np.mean(excess[used]) if used.any() else 0.0), 0.0)  # less what g or a scale leaves
-    variance = float(np.mean(hand[used])) if used.any() else 0.0
     return HandMotion(weight, np.sqrt(hand), hand_autocorrelation(e[:, None], used, start), variance)
+
+
+def hand_size(x: np.ndarray, used: np.ndarray, start: AccelerometerStart) -> tuple[np.ndarray, float]:
+    """(the hand's variance per axis in each interval, m^2/s^4, 0 where unused; its mean over the used ones): the
+    mean square of x (n_int, 3) over HAND_SIZE_WINDOW_S less the white noise's. Over 1 s a slow sway's square swings
+    from 0 to twice its mean (paper-table1-acc, 12 seeds: std/spread 0.22-0.79 with 1 s, 0.44-1.4 with 30 s)."""
+    local = local_mean_square(np.sqrt(np.sum(x**2, axis=1) / 3.0), used, intervals_in(HAND_SIZE_WINDOW_S, start))
+    hand = np.where(used, np.maximum(local - white_variance(start), 0.0), 0.0)
+    return hand, float(np.mean(hand[used])) if used.any() else 0.0
 
 
 def tapered_autocorrelation(z: np.ndarray, max_lag: int, hand_share: float) -> np.ndarray:

@@ -25,6 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from magyro.nls.accelerometer import HAND_REACH_M, hand_autocorrelation, hand_size
+from magyro.nls.hand_motion import attitude_i_to_m
+from magyro.nls.interval import hand_slice
+
 HAND_SWAY_HZ = 0.1     # the hand's velocity std is its acceleration's over 2 pi times this
 HAND_TAU_S = 0.3       # the velocity's correlation time
 
@@ -65,8 +69,6 @@ def prior_information(problem, reduced) -> np.ndarray:
     """P (n_theta, n_theta): the profiled information the velocity's prior rows hold, sum_k w_k^2 D_k^T D_k with
     D_k = W_k1 - decay_k W_k on the velocity, W_n node n's response to the corrections (reduced.Dinv_Hpt; node 0
     fixed)."""
-    from magyro.nls.interval import hand_slice
-
     B, G = problem.B, problem.n_theta
     W = np.concatenate([np.zeros((1, B, G)), reduced.Dinv_Hpt.reshape(problem.n_int, B, G)])   # nodes 0..n_int
     v = hand_slice(problem.walk)
@@ -76,19 +78,19 @@ def prior_information(problem, reduced) -> np.ndarray:
     return flat.T @ flat
 
 
+def node_states(problem, x: np.ndarray) -> np.ndarray:
+    """(n_int + 1, B) every node's states, node 0's (fixed) zero."""
+    return np.vstack([np.zeros(problem.B), x[problem.n_theta :].reshape(-1, problem.B)])
+
+
 def hand_velocity(problem, x: np.ndarray) -> np.ndarray:
     """(n_int + 1, 3) the hand's velocity at the nodes (frame i, m/s), node 0's zero."""
-    from magyro.nls.interval import hand_slice
-
-    states = x[problem.n_theta :].reshape(-1, problem.B)[:, hand_slice(problem.walk)]
-    return np.vstack([np.zeros(3), states])
+    return node_states(problem, x)[:, hand_slice(problem.walk)]
 
 
 def hand_reach_m(problem, x: np.ndarray) -> float:
     """The std (m, RMS over the axes) of the device's position, the hand's velocity states integrated: how far the
     hand took it from where it was turned (at most HAND_REACH_M)."""
-    from magyro.nls.accelerometer import HAND_REACH_M
-
     v = hand_velocity(problem, x)
     position = np.cumsum(0.5 * (v[1:] + v[:-1]) * problem.grid.interval_s[:, None], axis=0)
     return float(min(np.sqrt(np.mean(position.var(axis=0))), HAND_REACH_M))
@@ -98,12 +100,9 @@ def hand_in_frame_i(problem, x: np.ndarray, p: np.ndarray, residuals: np.ndarray
     """(n_int, 3) the hand's mean acceleration in each interval, frame i (m/s^2): the states' (v_k1 - v_k) / T plus
     what the accelerometer's unweighted residuals (n_int, 3; y = M C_i^m a + ...) leave, C_m^i A r. The hand and the
     white noise, whatever the states took of it."""
-    from magyro.nls.hand_motion import attitude_i_to_m
-
-    G = problem.n_theta
-    v = hand_velocity(problem, x)
-    A = np.array(problem.accelerometer_function(x[:G], problem.globals_of(p))[0])
-    states = np.vstack([np.zeros(problem.B), x[G:].reshape(-1, problem.B)])
+    states = node_states(problem, x)
+    v = states[:, hand_slice(problem.walk)]
+    A = np.array(problem.accelerometer_function(x[: problem.n_theta], problem.globals_of(p))[0])
     C_i_m = attitude_i_to_m(problem.data_of(p), states[:-1])
     return (v[1:] - v[:-1]) / problem.grid.interval_s[:, None] + np.einsum("kji,kj->ki", C_i_m, residuals @ A.T)
 
@@ -111,13 +110,8 @@ def hand_in_frame_i(problem, x: np.ndarray, p: np.ndarray, residuals: np.ndarray
 def measured_hand(problem, start, x: np.ndarray, p: np.ndarray, residuals: np.ndarray, used: np.ndarray):
     """(hand_std_m_s2 (n_int,), autocorrelation, variance per axis, reach m) of the hand the states and the residuals
     hold together (`hand_in_frame_i`), measured as `accelerometer.hand_motion` measures the first solve's: its local
-    size over HAND_SIZE_WINDOW_S less the white noise, its Bartlett-tapered autocorrelation, isotropic."""
-    from magyro.nls.accelerometer import (HAND_SIZE_WINDOW_S, hand_autocorrelation, intervals_in, local_mean_square,
-                                          white_variance)
-
+    size over HAND_SIZE_WINDOW_S less the white noise (`accelerometer.hand_size`), its Bartlett-tapered
+    autocorrelation, isotropic."""
     z = np.where(used[:, None], hand_in_frame_i(problem, x, p, residuals), 0.0)
-    size = np.sqrt(np.sum(z**2, axis=1) / 3.0)
-    local = local_mean_square(size, used, intervals_in(HAND_SIZE_WINDOW_S, start))
-    hand = np.where(used, np.maximum(local - white_variance(start), 0.0), 0.0)
-    variance = float(np.mean(hand[used])) if used.any() else 0.0
+    hand, variance = hand_size(z, used, start)
     return np.sqrt(hand), hand_autocorrelation(z, used, start), variance, hand_reach_m(problem, x)

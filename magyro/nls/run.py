@@ -145,7 +145,7 @@ def hand_states_term(problem: JointProblem, lin: Linearisation, sol, reduced) ->
     correlated (`magyro.nls.hand_motion`, nothing counted as independent), less the share of the information that
     the velocity's prior holds, which is no data (`hand_states.prior_information`)."""
     used = sol.acc_weight > 0
-    r = residual_matrix(problem, sol.x, sol.p)
+    r = residual_matrix(problem, sol.x, sol.p) if sol.residuals is None else sol.residuals
     std, correlation, variance, reach = measured_hand(problem, lin.accelerometer, sol.x, sol.p,
                                                       solved_accelerometer_residuals(problem, r, sol.acc_weight), used)
     none = np.zeros(problem.n_int)

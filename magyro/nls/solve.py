@@ -337,10 +337,10 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
             moved = abs(tau - tau0) * max(abs(tau), abs(tau0)) > TIME_OFFSET_RELOOK_S2
             new_acc, acc_moved, hand = (accelerometer_reweighted(problem, lin, x, p, r, acc_weight)
                                         if problem.accelerometer and not problem.hand else (None, False, False))
+            shift = moved and problem.estimate_time_offset   # the same tau, about the new tau0
+            following = (sigma_mag * mag_factor if reweight else sigma_mag, density * gyro_factor if reweight
+                         else density, tau if shift else tau0, shifted_to(x, tau0, tau) if shift else x)
             if hand and method.hand_states:   # the hand's velocity becomes a state (nls/hand_states.py)
-                following = (sigma_mag * mag_factor if reweight else sigma_mag, density * gyro_factor if reweight
-                             else density, tau if moved and problem.estimate_time_offset else tau0,
-                             shifted_to(x, tau0, tau) if moved and problem.estimate_time_offset else x)
                 return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, r, density, step, not reweight,
                                 acc_weight, True, following)
             if n_pass == max_passes or not (moved or reweight or acc_moved):
@@ -348,12 +348,7 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
                                 acc_weight)
             if acc_moved:
                 acc_weight = new_acc
-            if moved and problem.estimate_time_offset:
-                x = shifted_to(x, tau0, tau)
-                tau0 = tau
-            if reweight:
-                sigma_mag *= mag_factor
-                density *= gyro_factor
+            sigma_mag, density, tau0, x = following
     finally:
         problem.release_solver()   # IPOPT's memory back before the std
     raise AssertionError("unreachable")
