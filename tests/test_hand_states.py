@@ -114,3 +114,9 @@ def test_a_fast_turned_accelerometer_comes_out_within_its_std(run_magyro, tmp_pa
     assert np.all(np.abs(z_states) < 3), z_states
     assert np.max(np.abs(z_weighted)) > 5, z_weighted
     assert states.solver.details["hand_states"]["sigma_v_m_s"] > 0
+    from magyro.text import significant
+
+    worst = significant(100 * np.max(np.diag(states.accelerometer.std_K_a)))   # the refusal says this session's own
+    assert any(f"scale factors come out uncertain by up to {worst} % one-sigma" in w for w in states.warnings), (
+        states.warnings)
+    assert any("biases the accelerometer's scale factors" in w for w in weighted.warnings), weighted.warnings

@@ -36,7 +36,7 @@ from magyro import so3
 from magyro.front.differences import white_noise_std
 from magyro.nls.grid import Grid
 from magyro.nls.interval import GLOBAL_SLICES, N_ACC_THETA
-from magyro.result.accelerometer import HAND_LIMIT_OF_G
+from magyro.result.accelerometer import HAND_LIMIT_OF_G, HAND_REACH_M
 from magyro.result.reported import qr_split
 from magyro.session import HOLE_FACTOR
 
@@ -44,7 +44,6 @@ HAND_WINDOW_S = 1.0          # the weights: the hand's acceleration variance is 
 HAND_MAX_LAG_S = 30.0        # its autocorrelation is measured up to this lag (a hand's slowest sway)
 HAND_SIZE_WINDOW_S = 30.0    # the std: its variance is measured over as long (`hand_motion`)
 HAND_OF_WHITE = 1.0          # the weights count a hand whose variance along gravity is above this many white noises
-HAND_REACH_M = 0.5           # the device's position stays within this std (m) of where it is turned (`reach_cap`)
 
 
 @dataclass

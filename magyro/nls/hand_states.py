@@ -90,10 +90,10 @@ def hand_velocity(problem, x: np.ndarray) -> np.ndarray:
 
 def hand_reach_m(problem, x: np.ndarray) -> float:
     """The std (m, RMS over the axes) of the device's position, the hand's velocity states integrated: how far the
-    hand took it from where it was turned (at most HAND_REACH_M)."""
+    hand took it from where it was turned, as the states say (they may take up more than the hand)."""
     v = hand_velocity(problem, x)
     position = np.cumsum(0.5 * (v[1:] + v[:-1]) * problem.grid.interval_s[:, None], axis=0)
-    return float(min(np.sqrt(np.mean(position.var(axis=0))), HAND_REACH_M))
+    return float(np.sqrt(np.mean(position.var(axis=0))))
 
 
 def hand_in_frame_i(problem, x: np.ndarray, p: np.ndarray, residuals: np.ndarray) -> np.ndarray:
@@ -108,10 +108,11 @@ def hand_in_frame_i(problem, x: np.ndarray, p: np.ndarray, residuals: np.ndarray
 
 
 def measured_hand(problem, start, x: np.ndarray, p: np.ndarray, residuals: np.ndarray, used: np.ndarray):
-    """(hand_std_m_s2 (n_int,), autocorrelation, variance per axis, reach m) of the hand the states and the residuals
-    hold together (`hand_in_frame_i`), measured as `accelerometer.hand_motion` measures the first solve's: its local
-    size over HAND_SIZE_WINDOW_S less the white noise (`accelerometer.hand_size`), its Bartlett-tapered
-    autocorrelation, isotropic."""
+    """(hand_std_m_s2 (n_int,), autocorrelation, variance per axis, reach m, at most HAND_REACH_M) of the hand the
+    states and the residuals hold together (`hand_in_frame_i`), measured as `accelerometer.hand_motion` measures the
+    first solve's: its local size over HAND_SIZE_WINDOW_S less the white noise (`accelerometer.hand_size`), its
+    Bartlett-tapered autocorrelation, isotropic."""
     z = np.where(used[:, None], hand_in_frame_i(problem, x, p, residuals), 0.0)
     hand, variance = hand_size(z, used, start)
-    return np.sqrt(hand), hand_autocorrelation(z, used, start), variance, hand_reach_m(problem, x)
+    reach = min(hand_reach_m(problem, x), HAND_REACH_M)   # no hand held within reach goes further
+    return np.sqrt(hand), hand_autocorrelation(z, used, start), variance, reach

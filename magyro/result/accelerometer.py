@@ -15,6 +15,7 @@ from magyro.result.parts import as_list, read_array, read_number
 
 UPPER = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
 HAND_LIMIT_OF_G = 0.07   # the hand's RMS acceleration while turning above which gravity is not read (nls `hand_too_big`)
+HAND_REACH_M = 0.5       # the device's position stays within this std (m) of where it is turned (nls `reach_cap`)
 
 
 @dataclass

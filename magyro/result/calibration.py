@@ -11,7 +11,7 @@ from magyro import so3
 from magyro.errors import InputError
 from magyro.front.ellipsoid import calibrated_field
 from magyro.front.findings import RecordingCheck
-from magyro.result.accelerometer import AccelerometerCalibration
+from magyro.result.accelerometer import HAND_REACH_M, AccelerometerCalibration
 from magyro.result.consistency_record import SplitCheck
 from magyro.result.fit import FilterFit, LeastSquaresFit, fit_from_dict
 from magyro.result.trajectory import AttitudeTrajectory
@@ -176,9 +176,11 @@ class Calibration:
             lines.extend(self.accelerometer.table_lines())
         hand = self.solver.details.get("hand_states")
         if hand:
+            beyond = (f", more than a hand reaches ({HAND_REACH_M:g} m): the states took up more than the hand"
+                      if hand["reach_m"] > HAND_REACH_M else "")
             lines.append(f"the hand's velocity solved at every node (prior std {significant(hand['sigma_v_m_s'])} m/s, "
                          f"correlation {hand['tau_s']:g} s; integrated, a position std of {significant(hand['reach_m'])} "
-                         "m); --no-hand-states weights the hand as noise instead")
+                         f"m{beyond}); --no-hand-states weights the hand as noise instead")
         if self.time_offset_estimated:
             lines.append(f"magnetometer lag behind the gyro (ms, negative: it leads)  {1e3 * self.time_offset_s:+.2f} +/- "
                          f"{1e3 * s.time_offset_s:.2f}")
