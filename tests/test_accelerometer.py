@@ -204,6 +204,31 @@ def test_each_rest_counts_once(broad02_solved):
     assert np.count_nonzero(columns["wrest0"]) + np.count_nonzero(columns["wrest1"]) == 2
 
 
+def test_the_hand_states_std_counts_the_recordings_own_hand_at_every_time_it_could_have_come():
+    """The hand states' std takes the recording's own hand (three axes, as measured) as the hand that could have
+    come, at any time: Omega is the mean over every shift s of e_s e_s^T, e_s = sum_j U_j a_(j+s) (a zero outside
+    the record), less the white noise's share. Checked against that sum done shift by shift, with a hand whose axes
+    sway differently (no isotropy assumed), and the white noise's share: a hand of white noise alone adds ~nothing."""
+    from magyro.nls.hand_motion import shifted_hand_information
+
+    rng = np.random.default_rng(1)
+    n, dt = 300, 0.05
+    t = np.arange(n) * dt
+    hand = np.stack([0.1 * np.sin(2 * np.pi * f * t + rng.uniform(0, 6.3)) for f in (0.3, 0.7, 1.1)], axis=1)
+    U = rng.normal(size=(n, 4, 3))                                   # 4 parameters' sensitivities per axis
+    shifted = [np.einsum("kga,ka->g", U[max(0, -s): n - max(0, s)], hand[max(0, s): n + min(0, s)])
+               for s in range(-n + 1, n)]
+    direct = sum(np.outer(e, e) for e in shifted) / n
+    np.testing.assert_allclose(shifted_hand_information(U, hand, np.zeros(n)), direct, rtol=1e-9, atol=1e-12)
+    assert np.all(np.linalg.eigvalsh(direct) > -1e-12)
+    # white noise only: its share taken out, what is left is within the noise of its own periodogram
+    sigma = 0.05
+    noise = shifted_hand_information(U, rng.normal(scale=sigma, size=(n, 3)), np.full(n, sigma**2))
+    flat = U.transpose(0, 2, 1).reshape(-1, 4)
+    white = sigma**2 * flat.T @ flat
+    assert np.max(np.abs(np.diag(noise))) < 0.2 * np.min(np.diag(white))
+
+
 def test_the_hands_spectrum_holds_no_power_a_hand_within_reach_cannot_have():
     """A hand's acceleration is its position's second derivative: below f it has at most (2 pi f)^4 times the
     position's variance. `hand_spectrum` caps a measured autocorrelation there (zero at zero frequency) and leaves a

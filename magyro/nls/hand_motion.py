@@ -40,7 +40,6 @@ def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, re
     hand held within reach could put it (`accelerometer.hand_spectrum`, with the hand's variance `variance_m2_s4`)."""
     if not np.any(hand_std_m_s2 > 0) and not np.any(weights_hand_std_m_s2 > 0):
         return np.zeros_like(information)
-    info_inv = np.linalg.inv(information)
     sensitivities = hand_sensitivities(problem, x, p, reduced, np.ones(problem.n_int))
     U = sensitivities * hand_std_m_s2[:, None, None]                                       # (n_int, n_theta, 3)
     counted = sensitivities * weights_hand_std_m_s2[:, None, None]
@@ -56,10 +55,41 @@ def hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, re
     omega = (G.T @ G.conj()).real                                 # sum over f and axes of S F F^H / N: one product
     held = counted.transpose(0, 2, 1).reshape(-1, counted.shape[1])
     omega -= held.T @ held                                        # what I counts as independent
-    total = information + omega                                   # J^T W (white + hand) W J: positive semi-definite,
-    value, vector = np.linalg.eigh(total)                         # but for rounding (the weights may count more hand
-    total = (vector * np.maximum(value, 0.0)) @ vector.T          # than measured: then the std is below I^-1)
-    return info_inv @ total @ info_inv - info_inv
+    return sandwich_term(information, omega)
+
+
+def shifted_hand_covariance_term(problem: JointProblem, x: np.ndarray, p: np.ndarray, reduced: Reduced,
+                                 information: np.ndarray, hand_i_m_s2: np.ndarray, white_m2_s4: np.ndarray) -> np.ndarray:
+    """I^-1 Omega I^-1: what the hand adds to the corrections' covariance, the hand that could have come being the
+    recording's own (`hand_i_m_s2` (n_int, 3), frame i, as measured with its white noise, zero where unused) at any
+    time (`shifted_hand_information`)."""
+    U = hand_sensitivities(problem, x, p, reduced, np.ones(problem.n_int))
+    return sandwich_term(information, shifted_hand_information(U, hand_i_m_s2, white_m2_s4))
+
+
+def shifted_hand_information(U: np.ndarray, hand: np.ndarray, white: np.ndarray) -> np.ndarray:
+    """Omega (n_theta, n_theta): the mean over every shift s in time of e_s e_s^T, e_s = sum_j U_j a_(j+s) what the
+    hand a (n, 3; zero outside the record) moved by s puts into the gradient (U (n, n_theta, 3) per unit of it in
+    each interval), less what the white noise in a puts there (`white` (n,), its variance per axis in each
+    interval). Its spectrum is the hand's periodogram, each axis's own and their cross-spectra: no taper, no
+    isotropy, no stationary size. One recording's hand is a few sways, each at a frequency of its own; the
+    autocorrelation tapered over 30 s and averaged over the axes (`hand_covariance_term`'s) smeared each over 1/30 Hz,
+    and fed the simulator's true hand it gave a std 1.0-2.4x the error that hand makes; shifted, 0.8-1.3x
+    (benchmarks/hand_states_std.py, 64 seeds of each simulated problem)."""
+    n = len(U)
+    size = 1 << int(np.ceil(np.log2(2 * n)))                   # no shift wraps around
+    spectrum = np.einsum("fga,fa->fg", np.fft.rfft(U, size, axis=0), np.fft.rfft(hand[::-1], size, axis=0))
+    errors = np.fft.irfft(spectrum, size, axis=0)              # e_s at every shift (and zeros)
+    flat = U.transpose(0, 2, 1).reshape(-1, U.shape[1])
+    return errors.T @ errors / n - float(np.sum(white)) / n * (flat.T @ flat)
+
+
+def sandwich_term(information: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """I^-1 (I + Omega) I^-1 - I^-1, I + Omega (J^T W (white + hand) W J) made positive semi-definite: where the
+    hand measured is smaller than what the information already counts, the std comes out below I^-1."""
+    info_inv = np.linalg.inv(information)
+    value, vector = np.linalg.eigh(information + omega)
+    return info_inv @ ((vector * np.maximum(value, 0.0)) @ vector.T) @ info_inv - info_inv
 
 
 def hand_sensitivities(problem: JointProblem, x, p, reduced: Reduced, hand_std_m_s2: np.ndarray) -> np.ndarray:

@@ -15,9 +15,9 @@ hand is what the states take. The process's two numbers come from the first pass
 that frequency), tau = HAND_TAU_S (benchmarks/accelerometer_hand_models.py measured the family against the
 simulator's hand; docs/accelerometer.md, "The hand as states", what the solves give).
 
-The std is the sandwich of that estimator under the hand it measured (`measured_hand`): the states' prior is no
-data, so its share of the information is taken out (`prior_information`) and the hand's measured correlation put
-in (nls/hand_motion.py).
+The std is the sandwich of that estimator under the hand it measured (`hand_in_frame_i`, shifted to every time it
+could have come: nls/hand_motion.py `shifted_hand_covariance_term`): the states' prior is no data, so its share of
+the information is taken out (`prior_information`).
 """
 from __future__ import annotations
 
@@ -25,7 +25,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from magyro.nls.accelerometer import HAND_REACH_M, hand_autocorrelation, hand_size
 from magyro.nls.hand_motion import attitude_i_to_m
 from magyro.nls.interval import hand_slice
 
@@ -105,14 +104,3 @@ def hand_in_frame_i(problem, x: np.ndarray, p: np.ndarray, residuals: np.ndarray
     A = np.array(problem.accelerometer_function(x[: problem.n_theta], problem.globals_of(p))[0])
     C_i_m = attitude_i_to_m(problem.data_of(p), states[:-1])
     return (v[1:] - v[:-1]) / problem.grid.interval_s[:, None] + np.einsum("kji,kj->ki", C_i_m, residuals @ A.T)
-
-
-def measured_hand(problem, start, x: np.ndarray, p: np.ndarray, residuals: np.ndarray, used: np.ndarray):
-    """(hand_std_m_s2 (n_int,), autocorrelation, variance per axis, reach m, at most HAND_REACH_M) of the hand the
-    states and the residuals hold together (`hand_in_frame_i`), measured as `accelerometer.hand_motion` measures the
-    first solve's: its local size over HAND_SIZE_WINDOW_S less the white noise (`accelerometer.hand_size`), its
-    Bartlett-tapered autocorrelation, isotropic."""
-    z = np.where(used[:, None], hand_in_frame_i(problem, x, p, residuals), 0.0)
-    hand, variance = hand_size(z, used, start)
-    reach = min(hand_reach_m(problem, x), HAND_REACH_M)   # no hand held within reach goes further
-    return np.sqrt(hand), hand_autocorrelation(z, used, start), variance, reach

@@ -25,8 +25,8 @@ from magyro.nls.information import information_std
 from magyro.nls.method import NLS
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.reduction import gauss_newton_decrement, reduce_hessian
-from magyro.nls.hand_motion import hand_covariance_term
-from magyro.nls.hand_states import hand_prior, hand_reach_m, interleave_hand, measured_hand, prior_information
+from magyro.nls.hand_motion import hand_covariance_term, shifted_hand_covariance_term
+from magyro.nls.hand_states import hand_in_frame_i, hand_prior, hand_reach_m, interleave_hand, prior_information
 from magyro.nls.accelerometer import (HAND_LIMIT_OF_G, HandMotion, hand_motion, hand_too_big,
                                       still_hand_weights, white_variance)
 from magyro.nls.solve import (build_problem, problem_parameters, residual_matrix, solve_passes,
@@ -141,16 +141,15 @@ def solve_with_hand_states(problem: JointProblem, prep: Prepared, lin: Linearisa
 
 def hand_states_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.ndarray:
     """What the hand adds to the corrections' covariance when its velocity is a state: the hand the states and the
-    residuals hold (`hand_states.measured_hand`), its spectrum capped by the reach its integrated velocity shows,
-    correlated (`magyro.nls.hand_motion`, nothing counted as independent), less the share of the information that
-    the velocity's prior holds, which is no data (`hand_states.prior_information`)."""
+    residuals hold (`hand_states.hand_in_frame_i`), shifted to every time it could have come
+    (`hand_motion.shifted_hand_covariance_term`), less the share of the information that the velocity's prior
+    holds, which is no data (`hand_states.prior_information`)."""
     used = sol.acc_weight > 0
     r = residual_matrix(problem, sol.x, sol.p) if sol.residuals is None else sol.residuals
-    std, correlation, variance, reach = measured_hand(problem, lin.accelerometer, sol.x, sol.p,
-                                                      solved_accelerometer_residuals(problem, r, sol.acc_weight), used)
-    none = np.zeros(problem.n_int)
-    term = hand_covariance_term(problem, sol.x, sol.p, reduced, reduced.information, std, none, correlation, variance,
-                                reach)
+    hand = np.where(used[:, None], hand_in_frame_i(problem, sol.x, sol.p,
+                                                   solved_accelerometer_residuals(problem, r, sol.acc_weight)), 0.0)
+    white = np.where(used, white_variance(lin.accelerometer), 0.0)
+    term = shifted_hand_covariance_term(problem, sol.x, sol.p, reduced, reduced.information, hand, white)
     info_inv = np.linalg.inv(reduced.information)
     return term - info_inv @ prior_information(problem, reduced) @ info_inv
 
