@@ -75,6 +75,7 @@ def one_seed(args) -> dict | None:
                                         shifted_hand_information)
     from magyro.nls.hand_states import hand_reach_m, prior_information
     from magyro.nls.method import NLS
+    from magyro.nls.reduction import reduce_hessian
     from magyro.nls.solve import build_problem, solve_passes
     from magyro.options import Options
     from magyro.studies.scenario import load_problem
@@ -91,7 +92,8 @@ def one_seed(args) -> dict | None:
     sol = solve_passes(first, prep, lin, method, run.level_estimator(first, prep, lin))
     if not sol.hand_found:
         return None
-    jp, solved, reduced = run.solve_with_hand_states(first, prep, lin, method, sol, run.solved_hand_motion(first, lin, sol))
+    jp, solved = run.solve_with_hand_states(first, prep, lin, method, sol, run.solved_hand_motion(first, lin, sol))
+    reduced = reduce_hessian(run.solved_hessian(jp, solved), jp.n_theta, jp.B)
     S_inv = np.linalg.inv(reduced.information)
     P = prior_information(jp, reduced)
     J = reported_jacobian(jp, solved.x[: jp.n_theta], jp.globals_of(solved.p))

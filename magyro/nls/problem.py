@@ -121,7 +121,7 @@ class JointProblem:
         )
         self.accelerometer_function = ca.Function("accelerometer", [th, g], list(unpack_accelerometer(th, g)),
                                                   ["theta", "g"], ["A", "b", "u_i", "g_m_s2", "lever_m"]) if acc else None
-        self._solver = None
+        self._solvers, self._objective, self._gradient = {}, None, None   # IPOPT, one per set of options (`solver`)
 
     # ------------------------------------------------------------------ MX graph
     def _split(self, x, p):
@@ -223,7 +223,7 @@ class JointProblem:
         """(the solution, IPOPT's stats): IPOPT from x0 with the parameters p, which the callbacks of the NLP read
         from numpy (the NLP has no parameter: no DM or work copy of p); the point of the last Gauss-Newton Hessian
         IPOPT evaluated is kept (`last_hessian_point`)."""
-        self.solver()
+        self.callbacks()
         p = np.ascontiguousarray(p, dtype=float)
         self._kept.start(p)
         self._objective.p = self._gradient.p = p
@@ -245,7 +245,7 @@ class JointProblem:
         """Give IPOPT's memory back (its matrices and MUMPS's factors stay with the solver until it goes: 120 MB at
         360k samples); the last Hessian's point stays (`last_hessian_point`), and `solver` builds a new one when
         asked."""
-        self._solver = self._objective = self._gradient = None
+        self._solvers, self._objective, self._gradient = {}, None, None
         give_back()
 
     def last_hessian_point(self, p: np.ndarray) -> np.ndarray | None:
@@ -362,14 +362,10 @@ class JointProblem:
     def solver(self, ipopt_options: dict | None = None):
         """IPOPT on the NLP in x alone: objective, gradient and Gauss-Newton Hessian are callbacks that evaluate the
         kernels' maps on numpy with the parameters of the running `solve` (no MX graph of the whole problem)."""
-        if self._solver is None:
+        key = tuple(sorted((ipopt_options or {}).items()))
+        if self._solvers.get(key) is None:
             x, p = ca.MX.sym("x", self.n_x), ca.MX.sym("p", 0)
-            self._objective = OnNumpy(self, "joint_objective", ["x"], {"f": ca.Sparsity.dense(1, 1)},
-                                      lambda x_, p_: [self.objective_value(x_, p_)])
-            self._gradient = OnNumpy(self, "nlp_grad_f", ["x", "p"], {"f": ca.Sparsity.dense(1, 1),
-                                     "grad_f_x": ca.Sparsity.dense(self.n_x, 1)},
-                                     lambda x_, p_: list(self.objective_and_gradient(x_, p_)))
-            self._kept = KeptHessian(self)
+            self.callbacks()
             opts = {
                 "hess_lag": self._kept,   # the callbacks themselves: no MX function around them (its work copies)
                 "grad_f": self._gradient,
@@ -403,8 +399,19 @@ class JointProblem:
                 # Without it QAMD stays: that problem's numbers stay bit for bit.
                 opts["ipopt.mumps_pivot_order"] = 2
             opts.update(ipopt_options or {})
-            self._solver = ca.nlpsol("joint", "ipopt", {"x": x, "p": p, "f": self._objective(x)}, opts)
-        return self._solver
+            self._solvers[key] = ca.nlpsol("joint", "ipopt", {"x": x, "p": p, "f": self._objective(x)}, opts)
+        return self._solvers[key]
+
+    def callbacks(self) -> None:
+        """The objective, gradient and Hessian callbacks every solver of this problem shares (made once, until
+        `release_solver`)."""
+        if self._objective is None:
+            self._objective = OnNumpy(self, "joint_objective", ["x"], {"f": ca.Sparsity.dense(1, 1)},
+                                      lambda x_, p_: [self.objective_value(x_, p_)])
+            self._gradient = OnNumpy(self, "nlp_grad_f", ["x", "p"], {"f": ca.Sparsity.dense(1, 1),
+                                     "grad_f_x": ca.Sparsity.dense(self.n_x, 1)},
+                                     lambda x_, p_: list(self.objective_and_gradient(x_, p_)))
+            self._kept = KeptHessian(self)
 
 
 def evaluate(fn: ca.Function, *args) -> list[np.ndarray]:

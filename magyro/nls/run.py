@@ -55,6 +55,11 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     gate_warnings = predicted_accuracy_gate(problem, prep, lin, options)
     step(f"solving the least squares ({problem.n_x} unknowns, IPOPT)")
     sol = solve_passes(problem, prep, lin, method, level_estimator(problem, prep, lin))
+    first, hand = problem, None
+    if sol.hand_found:   # its first pass measured the hand: the passes go on with the hand's velocity as states
+        hand = solved_hand_motion(problem, lin, sol)
+        step("the hand's velocity as states: the least squares again")
+        problem, sol = solve_with_hand_states(problem, prep, lin, method, sol, hand)
     step("the uncertainty: information and the room's field")
     reduced = reduce_hessian(solved_hessian(problem, sol), problem.n_theta, problem.B)
     decrement = gauss_newton_decrement(reduced, problem.gradient_values(sol.x, sol.p))
@@ -67,13 +72,11 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
         if not options.force and not gate_checked(prep):
             # the excitation looked strong enough to skip the accuracy check; a failed solve says look again
-            predicted_accuracy_gate(problem, prep, lin, options, always=True)
+            predicted_accuracy_gate(first, prep, lin, options, always=True)
         raise SolverError(not_converged_message(sol, decrement))
     sol.stats["gauss_newton_decrement"] = decrement
-    hand = solved_hand_motion(problem, lin, sol) if problem.accelerometer else None
-    if sol.hand_found:
-        step("the hand's velocity as states: the least squares again")
-        problem, sol, reduced = solve_with_hand_states(problem, prep, lin, method, sol, hand)
+    if problem.accelerometer and not problem.hand:
+        hand = solved_hand_motion(problem, lin, sol)
     cov_theta, disturbance = disturbance_covariance(problem, sol.x, sol.p, reduced, solved_attitudes(problem, lin, sol.x),
                                                     prep.session)
     if problem.hand:
@@ -121,8 +124,8 @@ def hand_term(problem: JointProblem, lin: Linearisation, sol, reduced, hand: Han
 
 def solve_with_hand_states(problem: JointProblem, prep: Prepared, lin: Linearisation, method: NLS, sol, hand: HandMotion):
     """(the problem with the hand's velocity as states, its solution from where `sol`, the first pass of the one
-    without them, left off, its reduced Hessian): the interval means weighted by their white noise alone
-    (nls/hand_states.py), the passes going on (`solve_passes`); refused (exit 1) when it does not converge."""
+    without them, left off): the interval means weighted by their white noise alone (nls/hand_states.py), the passes
+    going on (`solve_passes`); its convergence is checked as any solve's (`calibrate_nls`)."""
     staged = JointProblem(problem.grid, compiled=problem.compiled, estimate_time_offset=problem.estimate_time_offset,
                           huber=problem.huber, walk_density=problem.walk_density, accelerometer=True,
                           hand_prior=hand_prior(hand.variance_m2_s4))
@@ -131,12 +134,7 @@ def solve_with_hand_states(problem: JointProblem, prep: Prepared, lin: Linearisa
                                 tau0_s=tau0, acc_weight=still_hand_weights(lin.accelerometer))
     solved = solve_passes(staged, prep, lin, method, level_estimator(staged, prep, lin), start)
     solved.passes += sol.passes
-    reduced = reduce_hessian(solved_hessian(staged, solved), staged.n_theta, staged.B)
-    decrement = gauss_newton_decrement(reduced, staged.gradient_values(solved.x, solved.p))
-    if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
-        raise SolverError(not_converged_message(solved, decrement))
-    solved.stats["gauss_newton_decrement"] = decrement
-    return staged, solved, reduced
+    return staged, solved
 
 
 def hand_states_term(problem: JointProblem, lin: Linearisation, sol, reduced) -> np.ndarray:

@@ -289,6 +289,24 @@ class Solution:
     following: tuple | None = None         # (sigma_mag, gyro density, tau0, x) the next solve starts from
 
 
+# A pass that may find a hand (the accelerometer's first, with NLS.hand_states) stops at the first step that moves
+# the objective by less than 1e-3 of itself: the hand is measured there (the velocity prior's sigma_v on BROAD 02
+# and 07 within 3e-4 of itself, K_a within 1e-6 and its std within 1e-3 of itself against the pass polished to
+# 1e-10) and the states' solve polishes the rest (BROAD 02: 3 iterations instead of 5). 1e-2 stopped the poorly
+# excited first half of trial 2 in its damped steps, 10 % of the way down, with sigma_v 3x too large. Where it
+# finds no hand the pass goes on from there to the full stop.
+LOOSE_STOP = {"ipopt.acceptable_obj_change_tol": 1e-3, "ipopt.acceptable_iter": 1}
+
+
+def ipopt_stop(problem: JointProblem, method: NLS) -> dict:
+    """IPOPT's stopping options for this problem's passes. With the hand's velocity as states, the first step that
+    moves the objective by less than 1e-8 of itself (BROAD 02: 2.7e-6 of 1772, the step after it 5e-11; 07: 5e-6 of
+    9095), one step fewer than two steps under 1e-10, the stop of every other problem (whose numbers stay bit for
+    bit). Either way the Gauss-Newton decrement is checked afterwards (`run.calibrate_nls`: below 1e-3)."""
+    return {"ipopt.max_iter": method.max_iter,
+            **({"ipopt.acceptable_obj_change_tol": 1e-8, "ipopt.acceptable_iter": 1} if problem.hand else {})}
+
+
 VARIANCE_TOLERANCE = 0.05   # estimated levels are settled when the last step moved each by less than this
 MAX_VARIANCE_PASSES = 12    # passes when the levels are estimated (each a warm start of a few iterations)
 
@@ -306,7 +324,10 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
     this solve does (`Solution.hand_found`; its next levels in `following`). From a `start` (that solve's
     `following`, its x laid out for this problem, and the weights `start.acc_weight`) the passes go on from there,
     counting its iterations and time."""
-    solver = problem.solver({"ipopt.max_iter": method.max_iter})
+    stop = ipopt_stop(problem, method)
+    # a first pass that may find a hand need not be polished: the states' solve goes on from it
+    loose = ({**stop, **LOOSE_STOP} if start is None and problem.accelerometer and not problem.hand
+             and method.hand_states else None)
     if start is None:
         sigma_mag, density, tau0 = prep.sigma_mag, prep.gyro_density, lin.time_offset_s
         acc_weight = None if lin.accelerometer is None else lin.accelerometer.weight
@@ -317,10 +338,12 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
     estimating = variance_step is not None
     max_passes = MAX_VARIANCE_PASSES if estimating else MAX_PASSES
     step = None
+    n_pass = 1
     try:
-        for n_pass in range(1, max_passes + 1):
+        while True:
             p = problem_parameters(problem, prep, lin, sigma_mag, tau0, density, acc_weight)
             t0 = time.perf_counter()
+            solver = problem.solver(loose or stop)   # made on first use, kept until released
             x, stats = problem.solve(solver, x, p)   # through buffers: no DM of p (0.6-1 s and 68 MB at 360k samples)
             seconds += time.perf_counter() - t0
             iterations += int(stats["iter_count"])
@@ -343,12 +366,16 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
             if hand and method.hand_states:   # the hand's velocity becomes a state (nls/hand_states.py)
                 return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, r, density, step, not reweight,
                                 acc_weight, True, following)
+            if loose is not None:   # no hand: the same pass again to the full stop, from where the loose one stopped
+                loose = None
+                continue
             if n_pass == max_passes or not (moved or reweight or acc_moved):
                 return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, r, density, step, not reweight,
                                 acc_weight)
             if acc_moved:
                 acc_weight = new_acc
             sigma_mag, density, tau0, x = following
+            n_pass += 1
     finally:
         problem.release_solver()   # IPOPT's memory back before the std
     raise AssertionError("unreachable")
