@@ -74,7 +74,7 @@ def shifted_hand_information(U: np.ndarray, hand: np.ndarray, white: np.ndarray)
     interval). Its spectrum is the hand's periodogram, each axis's own and their cross-spectra: no taper, no
     isotropy, no stationary size. One recording's hand is a few sways, each at a frequency of its own; the
     autocorrelation tapered over 30 s and averaged over the axes (`hand_covariance_term`'s) smeared each over 1/30 Hz,
-    and fed the simulator's true hand it gave a std 1.0-2.4x the error that hand makes; shifted, 0.8-1.3x
+    and fed the simulator's true hand its share of the std was 1.0-1.8x the error that hand makes; shifted, 0.8-1.2x
     (benchmarks/hand_states_std.py, 64 seeds of each simulated problem)."""
     n = len(U)
     size = 1 << int(np.ceil(np.log2(2 * n)))                   # no shift wraps around

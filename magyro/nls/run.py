@@ -101,8 +101,14 @@ def solved_hessian(problem: JointProblem, sol):
     in the last pass) at the solution. At convergence the two points differ by a step too small to matter: the
     estimates are those of the solution either way, and the std moved by < 1e-6 of itself where compared
     (benchmarks/same_estimates.py on BROAD 02, paper-table1 and the bench_limit sessions). Evaluated here, after
-    IPOPT gave its memory back, rather than kept from the solve (`on_numpy.KeptHessian`)."""
-    x = problem.last_hessian_point(sol.p)
+    IPOPT gave its memory back, rather than kept from the solve (`on_numpy.KeptHessian`).
+
+    With the hand's velocity as states, at the solution: there the hand's sensitivities (`hand_motion.
+    hand_sensitivities`, the Jacobian at the solution profiled by this Hessian's node responses) nearly cancel where
+    the states take up the hand, and a Hessian one step back left them off by as much as the hand is large (BROAD
+    trial 34, a hand of 2.2 m/s^2: K_a's std 2-5x apart between solves stopped one step apart; at the solution the
+    same to 1e-3)."""
+    x = None if problem.hand else problem.last_hessian_point(sol.p)
     return problem.hessian_values(sol.x if x is None else x, sol.p)
 
 

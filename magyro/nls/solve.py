@@ -302,7 +302,8 @@ def ipopt_stop(problem: JointProblem, method: NLS) -> dict:
     """IPOPT's stopping options for this problem's passes. With the hand's velocity as states, the first step that
     moves the objective by less than 1e-8 of itself (BROAD 02: 2.7e-6 of 1772, the step after it 5e-11; 07: 5e-6 of
     9095), one step fewer than two steps under 1e-10, the stop of every other problem (whose numbers stay bit for
-    bit). Either way the Gauss-Newton decrement is checked afterwards (`run.calibrate_nls`: below 1e-3)."""
+    bit). Either way the Gauss-Newton decrement is checked afterwards (`run.calibrate_nls`: below 1e-3), and the
+    states' std is taken at the solution itself (`run.solved_hessian`)."""
     return {"ipopt.max_iter": method.max_iter,
             **({"ipopt.acceptable_obj_change_tol": 1e-8, "ipopt.acceptable_iter": 1} if problem.hand else {})}
 
