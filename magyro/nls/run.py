@@ -238,8 +238,8 @@ def accelerometer_gate(cal: Calibration, options: Options) -> list[str]:
     hand = acc.hand_rms_m_s2
     if hand is not None and hand_too_big(hand, acc.g_m_s2):
         cost = (f"with its velocity as states the accelerometer's scale factors come out uncertain by up to "
-                f"{significant(100 * np.max(np.diag(acc.std_K_a)))} % one-sigma (BROAD's fast trials, forced: 1.3-4.7 %, "
-                "within 2 std of the slow trials' 1.000)" if "hand_states" in cal.solver.details
+                f"{significant(100 * np.max(np.diag(acc.std_K_a)))} % one-sigma (BROAD's fast trials, forced: 2.1-5.2 %, "
+                "within 2.1 std of the slow trials' 1.000)" if "hand_states" in cal.solver.details
                 else "a hand that moves with the turning biases the accelerometer's scale factors and bias by more than "
                      "their std (BROAD, against its optical truth: 4-30 %)")
         summary = (f"the hand accelerated the device by {significant(hand)} m/s^2 RMS while it turned, more than "
