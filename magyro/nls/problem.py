@@ -242,9 +242,8 @@ class JointProblem:
         return x, dict(buffer.stats())
 
     def release_solver(self) -> None:
-        """Give IPOPT's memory back (its matrices and MUMPS's factors stay with the solver until it goes: 120 MB at
-        360k samples); the last Hessian's point stays (`last_hessian_point`), and `solver` builds a new one when
-        asked."""
+        """Give IPOPT's memory back (its matrices and MUMPS's factors stay with each solver until it goes: 120 MB at
+        360k samples); the last Hessian's point stays (`last_hessian_point`); `solver` builds anew when asked."""
         self._solvers, self._objective, self._gradient = {}, None, None
         give_back()
 
@@ -403,13 +402,11 @@ class JointProblem:
         return self._solvers[key]
 
     def callbacks(self) -> None:
-        """The objective, gradient and Hessian callbacks every solver of this problem shares (made once, until
-        `release_solver`)."""
+        """The objective, gradient and Hessian callbacks every solver of this problem shares (until released)."""
         if self._objective is None:
-            self._objective = OnNumpy(self, "joint_objective", ["x"], {"f": ca.Sparsity.dense(1, 1)},
-                                      lambda x_, p_: [self.objective_value(x_, p_)])
-            self._gradient = OnNumpy(self, "nlp_grad_f", ["x", "p"], {"f": ca.Sparsity.dense(1, 1),
-                                     "grad_f_x": ca.Sparsity.dense(self.n_x, 1)},
+            one = ca.Sparsity.dense(1, 1)
+            self._objective = OnNumpy(self, "joint_objective", ["x"], {"f": one}, lambda x_, p_: [self.objective_value(x_, p_)])
+            self._gradient = OnNumpy(self, "nlp_grad_f", ["x", "p"], {"f": one, "grad_f_x": ca.Sparsity.dense(self.n_x, 1)},
                                      lambda x_, p_: list(self.objective_and_gradient(x_, p_)))
             self._kept = KeptHessian(self)
 
