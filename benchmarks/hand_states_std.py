@@ -38,21 +38,13 @@ NAMES = ["K_a[0,0]", "K_a[0,1]", "K_a[0,2]", "K_a[1,1]", "K_a[1,2]", "K_a[2,2]",
 KINDS = ("reported", "true hand, 30 s taper", "true hand, shifted")
 
 
-def reported_jacobian(jp, theta, g) -> np.ndarray:
-    """d (12 reported) / d corrections at theta, as `accelerometer.accelerometer_result` differences them."""
-    from magyro.nls.accelerometer import accelerometer_parameters, columns_moving_reported, reported_accelerometer
-    from magyro.result.reported import qr_split
+def accelerometer_std(jp, solved, cov: np.ndarray) -> np.ndarray:
+    """The 12 reported parameters' std under the corrections' covariance `cov`, as a solve reports them
+    (`accelerometer.accelerometer_result`), in NAMES' order."""
+    from magyro.nls.accelerometer import UPPER, accelerometer_result
 
-    def parts(th):
-        A, b = (np.array(v) for v in jp.accelerometer_function(th, g)[:2])
-        return A, b.ravel(), qr_split(np.array(jp.physical_function(th, g)[2]))[0]
-    C_b_a = accelerometer_parameters(*parts(theta))[2]
-    J = np.zeros((12, len(theta)))
-    for i in columns_moving_reported(len(theta)):
-        e = np.zeros(len(theta))
-        e[i] = 1e-6
-        J[:, i] = (reported_accelerometer(*parts(theta + e), C_b_a) - reported_accelerometer(*parts(theta - e), C_b_a)) / 2e-6
-    return J
+    acc = accelerometer_result(jp, solved.x[: jp.n_theta], jp.globals_of(solved.p), cov)
+    return np.concatenate([[acc.std_K_a[i, j] for i, j in UPPER], acc.std_bias_m_s2, acc.std_misalignment_deg])
 
 
 def true_hand_in_frame_i(problem, grid, seed: int) -> np.ndarray:
@@ -96,12 +88,11 @@ def one_seed(args) -> dict | None:
     reduced = reduce_hessian(run.solved_hessian(jp, solved), jp.n_theta, jp.B)
     S_inv = np.linalg.inv(reduced.information)
     P = prior_information(jp, reduced)
-    J = reported_jacobian(jp, solved.x[: jp.n_theta], jp.globals_of(solved.p))
     U = hand_sensitivities(jp, solved.x, solved.p, reduced, np.ones(jp.n_int))
     a = true_hand_in_frame_i(problem, grid, seed)
-    e = J @ S_inv @ np.einsum("kga,ka->g", U, a)
+    e = S_inv @ np.einsum("kga,ka->g", U, a)                      # the corrections' error the true hand makes
     prior = S_inv @ P @ S_inv
-    variance = lambda cov: np.diag(J @ cov @ J.T)
+    variance = lambda cov: accelerometer_std(jp, solved, cov) ** 2  # of the 12 reported
     used, start = solved.acc_weight > 0, lin.accelerometer
     # the true series measured as the weighted solve's std measures a hand, with no white noise to take out
     local = hand_size(a, used, dataclasses.replace(start, sigma_white_m_s2=0.0))[0]
@@ -114,7 +105,7 @@ def one_seed(args) -> dict | None:
                                                     float(local[used].mean()), reach)),
             KINDS[2]: variance(sandwich_term(info, shifted_hand_information(U, np.where(used[:, None], a, 0.0),
                                                                             np.zeros(jp.n_int))))}
-    return {"realized": e**2, "white": variance(S_inv - prior), **hand}
+    return {"realized": variance(np.outer(e, e)), "white": variance(S_inv - prior), **hand}
 
 
 def main(argv=None) -> None:

@@ -100,7 +100,7 @@ def hand_sensitivities(problem: JointProblem, x, p, reduced: Reduced, hand_std_m
     W_all = reduced.Dinv_Hpt.reshape(problem.n_int, B, -1)                  # nodes 1..n_int
     W = np.concatenate([np.zeros((1, B, G)), W_all[:-1]])                    # each interval's first node
     theta, g = np.asarray(x[:G], dtype=float), problem.globals_of(p).astype(float)
-    states = np.vstack([np.zeros(B), x[G:].reshape(-1, B)])                  # nodes 0..n_int
+    states = node_states(problem, x)                                         # nodes 0..n_int
     data = problem.data_of(p)
     weight = data[:, data_offset(problem, "w_acc")]
     readout = np.linalg.inv(np.array(problem.accelerometer_function(theta, g)[0]))   # M: the hand reads as M C_i^m a
@@ -130,6 +130,11 @@ def data_offset(problem: JointProblem, name: str) -> int:
             return o
         o += k
     raise KeyError(name)
+
+
+def node_states(problem: JointProblem, x: np.ndarray) -> np.ndarray:
+    """(n_int + 1, B) every node's states, node 0's (fixed) zero."""
+    return np.vstack([np.zeros(problem.B), x[problem.n_theta :].reshape(-1, problem.B)])
 
 
 def attitude_i_to_m(data: np.ndarray, states: np.ndarray) -> np.ndarray:

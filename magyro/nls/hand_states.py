@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from magyro.nls.hand_motion import attitude_i_to_m
+from magyro.nls.hand_motion import attitude_i_to_m, node_states
 from magyro.nls.interval import hand_slice
 
 HAND_SWAY_HZ = 0.1     # the hand's velocity std is its acceleration's over 2 pi times this
@@ -75,11 +75,6 @@ def prior_information(problem, reduced) -> np.ndarray:
     D = (W[1:, v] - cols[:, 1, None, None] * W[:-1, v]) * cols[:, 2, None, None]               # (n_int, 3, G)
     flat = D.reshape(-1, G)
     return flat.T @ flat
-
-
-def node_states(problem, x: np.ndarray) -> np.ndarray:
-    """(n_int + 1, B) every node's states, node 0's (fixed) zero."""
-    return np.vstack([np.zeros(problem.B), x[problem.n_theta :].reshape(-1, problem.B)])
 
 
 def hand_velocity(problem, x: np.ndarray) -> np.ndarray:
