@@ -1,10 +1,12 @@
-"""Regenerate the numbers of README.md that magyro computes.
+"""Regenerate the numbers of README.md, and of the docs pages that took the README's sections, that magyro computes.
 
-    python docs/make_readme_numbers.py [PAGE]           rewrite the blocks (default: README.md)
-    python docs/make_readme_numbers.py --check [PAGE]   exit 1 when the page is stale, change nothing
+    python docs/make_readme_numbers.py [PAGE]           rewrite the blocks (default: every page of PAGES)
+    python docs/make_readme_numbers.py --check [PAGE]   exit 1 when a page is stale, change nothing
 
-The README's numbers sit between `<!-- numbers:NAME:start -->` and `<!-- numbers:NAME:end -->` markers
-(docs/doc_blocks.py; a block may sit inside a line). `blocks()` makes them anew from:
+The numbers sit between `<!-- numbers:NAME:start -->` and `<!-- numbers:NAME:end -->` markers (docs/doc_blocks.py;
+a block may sit inside a line) in README.md and in PAGES, the pages its sections moved to (issue 40: how-it-works,
+results, using-the-result, commands, development); each page gets the blocks whose markers it has (`page_blocks`).
+`blocks()` makes them anew from:
 
 - the shipped BROAD trial data/broad-02.parquet solved with the defaults (`magyro solve`), validated against its
   optical truth (`magyro validate`), its recording check, and its PX4 export's cost (one solve, ~5 s);
@@ -13,8 +15,8 @@ The README's numbers sit between `<!-- numbers:NAME:start -->` and `<!-- numbers
 - the measured records docs/numbers/*.json of the expensive studies (the Monte Carlo Table I, the BROAD trials),
   rendered by docs/make_record_numbers.py, and the BROAD room numbers quoted from docs/real-data.md.
 
-tests/test_doc_numbers.py regenerates every block (with the suite's shared solve of broad-02) and fails when the
-README and the tool disagree.
+tests/test_doc_numbers.py regenerates every block (with the suite's shared solve of broad-02) and fails when a
+page and the tool disagree.
 """
 from __future__ import annotations
 
@@ -34,6 +36,8 @@ import shipped_data_numbers as shipped_data  # noqa: E402
 from recording_check_numbers import shipped_calibration  # noqa: E402
 
 PAGE = ROOT / "README.md"
+PAGES = (PAGE, *(ROOT / "docs" / f"{name}.md" for name in ("how-it-works", "results", "using-the-result", "commands",
+                                                             "development")))
 COMMAND = "python docs/make_readme_numbers.py"
 EXAMPLE_SAMPLE = 962          # the gyro sample of the worked example
 PX4_RATE_DEG_S = 360.0        # the rate at which the PX4 export's cost is quoted
@@ -227,15 +231,36 @@ def blocks(shipped=None) -> dict[str, str]:
 
 
 def suite_time_block() -> dict[str, str]:
-    """The suite's time (benchmarks/suite_time.py's record), once the README's "Tests" section has its markers."""
+    """The suite's time (benchmarks/suite_time.py's record), once the README has its markers."""
     if "<!-- numbers:suite-time:start -->" not in PAGE.read_text(encoding="utf-8") or not doc_blocks.has_record(
             "suite-time"):
         return {}
     return {"suite-time": readme_record_numbers.suite_time(doc_blocks.read_record("suite-time"))}
 
 
+def page_blocks(made: dict[str, str], pages=PAGES) -> dict[Path, dict[str, str]]:
+    """Each page's share of `made`: the blocks whose markers it has (a block may sit in more than one page)."""
+    out = {}
+    for page in pages:
+        names = set(doc_blocks.block_names_in_page(page.read_text(encoding="utf-8")))
+        out[page] = {name: body for name, body in made.items() if name in names}
+    return out
+
+
+def page_of(name: str) -> Path:
+    """The first page of PAGES with block `name`'s markers."""
+    return next(p for p in PAGES if name in doc_blocks.block_names_in_page(p.read_text(encoding="utf-8")))
+
+
 def main(argv: list[str]) -> int:
-    return doc_blocks.main(argv, PAGE, lambda: blocks(), COMMAND)
+    pages = [Path(a) for a in argv if a != "--check"] or list(PAGES)
+    made = blocks()
+    homeless = sorted(set(made) - {n for share in page_blocks(made, PAGES).values() for n in share})
+    if homeless:
+        sys.exit(f"blocks in no page of {COMMAND}: {', '.join(homeless)}")
+    check = [a for a in argv if a == "--check"]
+    return max(doc_blocks.main([*check, str(page)], page, lambda share=share: share, COMMAND)
+               for page, share in page_blocks(made, pages).items())
 
 
 if __name__ == "__main__":

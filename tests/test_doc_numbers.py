@@ -1,4 +1,5 @@
-"""README.md, docs/spec.md and docs/real-data.md: every generated block is what its generator makes now.
+"""README.md (and the docs pages that took its sections), docs/spec.md and docs/real-data.md: every generated block
+is what its generator makes now.
 
 docs/recording.md has its own module (tests/test_recording_doc.py). The README's blocks come from the suite's
 one solve of broad-02 (`broad02_solved`) and the code's constants; docs/real-data.md's from the record
@@ -51,11 +52,25 @@ def assert_every_block_generated(generator, made) -> None:
 
 
 def test_readme_is_what_the_tool_gives(readme_blocks):
-    assert_fresh(readme, readme_blocks)
+    """The README and the pages its sections moved to (docs/how-it-works.md, results.md, ...): each page's blocks."""
+    for page, share in readme.page_blocks(readme_blocks).items():
+        assert not stale_blocks(page, share), (
+            f"{page.relative_to(DOCS.parent)} is stale: regenerate it with `{readme.COMMAND}`")
 
 
 def test_readme_has_no_block_without_a_generator(readme_blocks):
-    assert_every_block_generated(readme, readme_blocks)
+    """Every block of those pages is one the script makes, and every block it makes is in one of them."""
+    in_pages = set()
+    for page in readme.PAGES:
+        names = blocks_module.block_names_in_page(page.read_text(encoding="utf-8"))
+        assert sorted(set(names) - set(readme_blocks)) == [], page
+        in_pages |= set(names)
+    assert sorted(in_pages) == sorted(readme_blocks)
+
+
+def test_the_readme_keeps_only_the_blocks_a_newcomer_needs():
+    """Issue 40: the README has the suite's time and the bias sign; the rest went with its sections to docs/."""
+    assert blocks_module.block_names_in_page(readme.PAGE.read_text(encoding="utf-8")) == ["suite-time", "bias-sign"]
 
 
 def test_readme_quotes_the_lag_the_solve_prints(broad02_acc_solved, readme_blocks):
@@ -114,7 +129,7 @@ def test_a_changed_monte_carlo_record_changes_table1_and_the_readme():
     run = next(r for r in record["methods"]["nls"]["runs"] if r["ok"])
     run["estimate"]["K_g[2,2]"] += 0.01          # one run far off: K_g[2,2]'s spread grows tenfold
     assert {"beside-paper", "full-table", "targets", "ekf"} <= set(stale_blocks(table1.PAGE, table1.blocks(record)))
-    assert stale_blocks(readme.PAGE, table1.readme_blocks(record)) == ["table1-summary"]
+    assert stale_blocks(readme.page_of("table1-summary"), table1.readme_blocks(record)) == ["table1-summary"]
 
 
 def test_observability_constants_and_records_are_the_codes(monkeypatch):
@@ -141,7 +156,7 @@ def test_a_changed_std_record_changes_real_data_and_the_readme():
     record["trials"]["21"]["split_rms_z"] += 1.0
     page = records.PAGE.read_text(encoding="utf-8")
     assert blocks_module.block_in_page(page, "std-table") != real_data.std_table_block(record)
-    readme_text = readme.PAGE.read_text(encoding="utf-8")
+    readme_text = readme.page_of("split-broad").read_text(encoding="utf-8")
     assert blocks_module.block_in_page(readme_text, "split-broad") != readme_records.room(record)["split-broad"]
 
 
@@ -276,7 +291,7 @@ shipped_data = load_script(DOCS / "shipped_data_numbers.py")
 def test_a_changed_stride_record_changes_the_readme():
     record = blocks_module.read_record("stride-agreement")
     record["rows"][0]["max_abs_z"] += 0.5
-    text = readme.PAGE.read_text(encoding="utf-8")
+    text = readme.page_of("stride-agreement").read_text(encoding="utf-8")
     assert blocks_module.block_in_page(text, "stride-agreement") != readme_records.stride_agreement(record)
 
 
@@ -300,7 +315,8 @@ def test_a_changed_trial_30_record_changes_the_readme():
     record = blocks_module.read_record(records.RECORD)
     record["trials"]["30"]["findings"] = []
     assert "finds nothing" in readme.anomaly_30(record)
-    assert blocks_module.block_in_page(readme.PAGE.read_text(encoding="utf-8"), "anomaly-30") != readme.anomaly_30(record)
+    text = readme.page_of("anomaly-30").read_text(encoding="utf-8")
+    assert blocks_module.block_in_page(text, "anomaly-30") != readme.anomaly_30(record)
 
 
 def test_the_shipped_data_figures_are_computed_cheaply_and_follow_their_sources(monkeypatch):
@@ -313,7 +329,8 @@ def test_the_shipped_data_figures_are_computed_cheaply_and_follow_their_sources(
             "third-difference": shipped_data.third_difference_block(),
             "rest-drift": shipped_data.rest_drift_block(), "ekf-mag-levels": shipped_data.ekf_mag_levels_block()}
     assert time.perf_counter() - t0 < 5.0       # loads two trials and finds their rests: no solve
-    pages = {"mag-autocorrelation": readme.PAGE, "third-difference": readme.PAGE, "rest-drift": records.PAGE,
+    pages = {"mag-autocorrelation": readme.page_of("mag-autocorrelation"),
+             "third-difference": readme.page_of("third-difference"), "rest-drift": records.PAGE,
              "ekf-mag-levels": ekf_page.PAGE}
     for name, body in made.items():
         assert blocks_module.block_in_page(pages[name].read_text(encoding="utf-8"), name) == body, name

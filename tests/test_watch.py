@@ -229,7 +229,7 @@ def test_the_readme_demo_reaches_enough_then_asks_for_the_rest_before_stop():
     from magyro.live.monitor import END_REST_S
     from magyro.live.prediction import REFRESH_S
 
-    demo = re.search(r"magyro simulate (\S+) --stream \\\| magyro watch -` \(.*?ENOUGH at about (\d+) s", README.read_text())
+    demo = re.search(r"magyro simulate (\S+) --stream \| magyro watch - +#.*?ENOUGH at about (\d+) s", README.read_text())
     assert demo, "the README's watch demo and its ENOUGH time"
     problem, said_s = load_problem(demo.group(1)), float(demo.group(2))
     session = sim.simulate(problem, 0)[0]
