@@ -1,5 +1,5 @@
 """Do fewer attitude nodes cost accuracy? One session solved at two strides: the largest difference of the twelve
-gyro parameters between the two solves, in units of the denser solve's reported std (README "Nodes").
+gyro parameters between the two solves, in units of the denser solve's reported std (docs/how-it-works.md "Nodes").
 
     python benchmarks/stride_agreement.py [--out docs/numbers/stride-agreement.json]
 

@@ -1,4 +1,4 @@
-"""How long the test suite takes: the record behind the README's "Tests" sentence.
+"""How long the test suite takes: the record behind the README's sentence on the tests' time.
 
     python benchmarks/suite_time.py [--out docs/numbers/suite-time.json] [-- PYTEST ARGS...]
 

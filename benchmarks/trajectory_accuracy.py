@@ -1,4 +1,4 @@
-"""The solved attitude trajectory (`magyro solve --trajectory`) against the truth: the README's figures.
+"""The solved attitude trajectory (`magyro solve --trajectory`) against the truth: docs/using-the-result.md's figures.
 
     python benchmarks/trajectory_accuracy.py [--runs 40] [--out docs/numbers/trajectory-accuracy.json]
 

@@ -1,11 +1,11 @@
-"""docs/table1.md and the README's Table I summary, rendered from the Monte Carlo records in docs/numbers/.
+"""docs/table1.md and docs/results.md's Table I summary, rendered from the Monte Carlo records in docs/numbers/.
 
     magyro montecarlo paper-table1 --runs 50 --jobs 1 --method nls,ekf -o /tmp/mc50.json      (minutes)
     magyro montecarlo paper-table1 --runs 200 --jobs 1 -o /tmp/mc200.json                     (minutes)
     python docs/make_table1_numbers.py --record /tmp/mc50.json [--record200 /tmp/mc200.json]  keep them as records
     python docs/make_table1_numbers.py [--check] [PAGE]          rewrite (or check) docs/table1.md's blocks
 
-The README's summary (`readme_blocks`) is rendered by docs/make_readme_numbers.py from the same record.
+docs/results.md's summary (`readme_blocks`) is rendered by docs/make_readme_numbers.py from the same record.
 
 A record is `magyro montecarlo -o`'s JSON (schema magyro.montecarlo/1) without the per-run solver details, with
 the command that made it. Every table is what `magyro.studies.montecarlo_table` makes of the record's runs: the
@@ -276,7 +276,7 @@ def blocks(record: dict | None = None, record200: dict | None = None) -> dict[st
     return out
 
 
-# --------------------------------------------------------------------------- the README's summary
+# --------------------------------------------------------------------------- docs/results.md's summary
 
 
 def readme_blocks(record: dict | None = None) -> dict[str, str]:

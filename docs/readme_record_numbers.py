@@ -1,5 +1,6 @@
-"""The README's figures measured by studies, rendered from their records in docs/numbers/ (docs/make_readme_numbers.py
-adds these blocks to the README's; tests/test_doc_numbers.py checks them):
+"""The figures measured by studies that the README's pages quote (docs/how-it-works.md, results.md,
+using-the-result.md, development.md), rendered from their records in docs/numbers/ (docs/make_readme_numbers.py
+adds these blocks to its pages'; tests/test_doc_numbers.py checks them):
 
 - montecarlo-paper-table1.json (docs/make_table1_numbers.py): the honesty check, the EKF's R and h;
 - std-on-real-data.json (benchmarks/std_on_real_data.py): the room's wander, the split-half check on BROAD;
@@ -17,7 +18,7 @@ import doc_blocks
 import make_table1_numbers as table1
 from doc_blocks import fixed, fmt, has_record, read_record, span
 
-PREFILTER_EXAMPLE = (1.5, 28.0)   # Hz: a hand's turning, and a phone's gyro rate (README step 6)
+PREFILTER_EXAMPLE = (1.5, 28.0)   # Hz: a hand's turning, and a phone's gyro rate (docs/how-it-works.md step 6)
 
 
 def honesty(mc: dict) -> str:

@@ -1,4 +1,4 @@
-"""Figures of README.md, docs/ekf.md and docs/real-data.md computed from the shipped BROAD trials
+"""Figures of docs/how-it-works.md, docs/ekf.md and docs/real-data.md computed from the shipped BROAD trials
 data/broad-02.parquet and data/broad-07.parquet (loaded, the recording check's repairs applied, rests found: no
 solve, well under a second each) and from the defaults of the simulated drifting logger in tests/degrade.py.
 

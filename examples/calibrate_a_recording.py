@@ -1,4 +1,4 @@
-"""Calibrate a real recording, save the result, read it back and apply it (the README's API example).
+"""Calibrate a real recording, save the result, read it back and apply it (docs/using-the-result.md's API example).
 
     python examples/calibrate_a_recording.py [SESSION] [OUTPUT_DIR]
 """

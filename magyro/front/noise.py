@@ -1,7 +1,7 @@
 """Sensor noise levels estimated from the data itself.
 
 What weights a least squares is the noise's low-frequency density, not its
-per-sample std: real sensors filter or repeat samples (the README quotes
+per-sample std: real sensors filter or repeat samples (docs/how-it-works.md quotes
 BROAD's magnetometer's autocorrelations, computed by docs/shipped_data_numbers.py),
 so consecutive samples are not independent. With per-sample std s and integrated autocorrelation time
 tau = 1 + 2 sum_k rho_k (in samples), the effective white std is
@@ -52,7 +52,7 @@ def floor_level(x: np.ndarray) -> tuple[float, str]:
 
 def third_difference_level(x: np.ndarray) -> tuple[float, str]:
     """(RMS over the axes of the third differences' level, DIFFERENCES when the fourth's confirm it else GUESS):
-    the magnetometer's. Its noise is often filtered (BROAD's, as logged: see the README), which higher
+    the magnetometer's. Its noise is often filtered (BROAD's, as logged: see docs/how-it-works.md), which higher
     orders see less of, so a falling level there may be the filter rather than motion: the third's level
     stays, and only its source says whether it is trusted; the solve estimates a guessed one."""
     third, fourth = difference_noise_std(x, 3), difference_noise_std(x, 4)

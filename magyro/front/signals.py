@@ -23,7 +23,7 @@ SPIKE_MAX_FRACTION = 0.01         # more than this share of the samples "far off
 LAG_GRID_S, LAG_SMOOTH_S, LAG_MAX_S = 0.005, 0.05, 0.5
 LAG_SHARP_S, LAG_MIN_SHARPNESS = 0.05, 0.02   # the correlation must drop this much 50 ms off its peak
 DRIFT_MIN_S = 0.02                # lag change between the first and last part of the recording
-SOLVE_LAG_SEARCH_S = 0.1          # the solve's time-offset search (README step 5)
+SOLVE_LAG_SEARCH_S = 0.1          # the solve's time-offset search (docs/how-it-works.md step 5)
 
 
 def saturation(t: np.ndarray, gyro: np.ndarray) -> tuple[np.ndarray, list]:

@@ -95,7 +95,7 @@ def rest_check(found: rests.Rests | None, K_g: np.ndarray, bias_rad_s: np.ndarra
 
 def warnings_for(fit: LeastSquaresFit, analysis: ObservabilityAnalysis, C_b_m: np.ndarray,
                  ellipsoid_fit: ellipsoid.EllipsoidFit) -> list[str]:
-    """The plain-language warnings of a solve (see the README's list)."""
+    """The plain-language warnings of a solve (docs/how-it-works.md, step 9)."""
     out = []
     change = fit.field_change
     if change.max_fraction > MAX_FIELD_CHANGE:

@@ -115,7 +115,7 @@ def default_stride(session: Session) -> int:
     Segments run between the boundaries of `grid.segment_starts` (every magnetometer sample and gyro time),
     a typical (median) segment apart. Over an interval the attitude only carries the integrated gyro, so
     fewer nodes cost no accuracy (paper-table1 at 100 Hz and BROAD trial 02 at strides 12 and 4:
-    benchmarks/stride_agreement.py, its record quoted in the README) and save memory and time: the nodes set the size of the Hessian and
+    benchmarks/stride_agreement.py, its record quoted in docs/how-it-works.md) and save memory and time: the nodes set the size of the Hessian and
     of IPOPT's linear algebra. The choice is from a fixed set so that the kernels, which depend on the
     stride only, are few and installed with magyro: 12 at 100-1000 Hz (BROAD's 285.7 Hz, a phone's 200 Hz
     gyro with a 50 Hz magnetometer), 4 below 96 Hz."""
