@@ -6,12 +6,13 @@ it over (every subcommand and option known, every value of its type, nothing req
 it. The cheap ones (check, the imports, apply, export, validate) then run end to end in a temporary folder on
 shipped data under the names the README uses: `session.parquet` is data/broad-02.parquet, `calib.json` the suite's
 one default solve of it (conftest's broad02_acc_solved, what `magyro solve` gives), `sensor_data.csv` the shipped
-x-io recording, `flight.ulg` the shipped PX4 log, and the per-sensor CSVs and app exports are written as
-tests/test_import_csv_files.py writes them. Those not run say why (PARSED_ONLY); a command the README gains is run
+x-io recording, `flight.ulg` the shipped PX4 log, the per-sensor CSVs and app exports are written as
+tests/test_import_csv_files.py writes them, and `recording.bag` as tests/test_rosbag.py does (rosbags installed). Those not run say why (PARSED_ONLY); a command the README gains is run
 or named there, or this fails.
 """
 from __future__ import annotations
 
+import importlib.util
 import re
 import shlex
 import shutil
@@ -24,6 +25,7 @@ import typer
 from typer.testing import CliRunner
 
 from magyro.cli import app
+from magyro.io import load_session
 
 try:
     import tomllib
@@ -45,7 +47,7 @@ QUICK_SUBSET = 'python -m pytest -q -m "not slow and not heavy"'
 
 SHIPPED = {"session.parquet": DATA / "broad-02.parquet", "sensor_data.csv": DATA / "wild" / "fusion" / "sensor_data.csv",
            "flight.ulg": DATA / "px4-sample-appended-multiple.ulg"}
-RUN = {"check", "import csv", "import ulog", "apply", "export", "validate"}      # seconds at most each
+RUN = {"check", "import csv", "import ulog", "import rosbag", "apply", "export", "validate"}   # a second or two each
 PARSED_ONLY = {           # the README's commands not run here, and why
     "magyro solve data/broad-02.parquet -o calib.json": "a solve; calib.json is the suite's one solve of it",
     "magyro solve session.parquet -o calib.json --split-check": "three solves (tests/test_consistency.py)",
@@ -56,8 +58,9 @@ PARSED_ONLY = {           # the README's commands not run here, and why
     "magyro watch /dev/ttyUSB0 --baud 115200 -o session.parquet": "needs a serial port",
     "magyro simulate phone-module --stream": "a minute in real time (tests/test_watch.py runs the demo)",
     "magyro watch -": "the demo's watcher (tests/test_watch.py)",
-    "magyro import rosbag recording.bag -o session.parquet": "no bag shipped (tests/test_rosbag.py writes one)",
 }
+NO_ROSBAGS = "magyro import rosbag recording.bag -o session.parquet"    # parsed only without rosbags to write the bag
+
 
 
 # --------------------------------------------------------------------------- the README's commands
@@ -195,6 +198,10 @@ def shipped_folder(tmp_path_factory, broad02_acc_solved):
         for csv in export.glob("*.csv"):
             archive.write(csv, csv.name)
     phyphox_export(folder / "phyphox-export")
+    if importlib.util.find_spec("rosbags"):
+        from test_rosbag import write_bag
+
+        write_bag(folder / "recording.bag", load_session(SHIPPED["session.parquet"]), n=3000, ros=1)
     assert np.isfinite(broad02_acc_solved[1].K_g).all()
     return folder
 
@@ -215,5 +222,7 @@ def test_the_readme_s_commands_run_on_shipped_data(shipped_folder, tmp_path, mon
         output = ctx.params.get("output")
         assert output is None or (here / output).stat().st_size > 0, (line(args), result.output)
         ran.append(command_name(ctx))
-    assert sorted(skipped) == sorted(PARSED_ONLY), "a command of the README neither runs here nor says why not"
-    assert set(ran) == RUN
+    bag = (shipped_folder / "recording.bag").exists()
+    assert sorted(skipped) == sorted([*PARSED_ONLY, *([] if bag else [NO_ROSBAGS])]), (
+        "a command of the README neither runs here nor says why not")
+    assert set(ran) == RUN - ({"import rosbag"} if not bag else set())
