@@ -244,20 +244,25 @@ REFUSAL_BOUND_NOTE = ("this is the refusal bound, Options.max_std or --max-std-*
                       "are a separate and stricter notion")
 
 
+def too_weak_reason(shortfalls: list[tuple[str, float, float, str]]) -> str:
+    """Why a motion is refused although it excites every gyro parameter: the words of `magyro observe`'s verdict and
+    of the solve's refusal alike, with the numbers and the motion to add."""
+    return ("all 12 gyro parameters are excited, but too weakly for a calibration worth having: "
+            + accuracy_summary(shortfalls))
+
+
 def accuracy_gate(std, options) -> list[str]:
     """Refuse (ObservabilityError, exit 3) a motion that excites every parameter too weakly for `options.max_std`;
     with `options.force`, the shortfall comes back as a warning instead."""
     shortfalls = accuracy_shortfalls(std, options.max_std)
     if not shortfalls:
         return []
-    summary = accuracy_summary(shortfalls)
     if not options.force:
         from magyro.errors import ObservabilityError
 
-        raise ObservabilityError(
-            f"the motion excites every gyro parameter, but too weakly for a calibration worth having: {summary} "
-            f"(--force solves anyway; {REFUSAL_BOUND_NOTE})")
-    return [f"solved with --force although the motion is too weak: {summary}"]
+        raise ObservabilityError(f"insufficient excitation: {too_weak_reason(shortfalls)} (magyro observe says the "
+                                 f"same; --force solves anyway; {REFUSAL_BOUND_NOTE})")
+    return [f"solved with --force although the motion is too weak: {accuracy_summary(shortfalls)}"]
 
 
 def unexcited_directions(analysis: ObservabilityAnalysis) -> np.ndarray | None:
