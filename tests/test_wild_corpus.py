@@ -95,6 +95,8 @@ def test_solve_refuses_the_fusion_recording_with_observes_verdict_before_any_sol
     assert verdict.startswith("insufficient excitation: all 12 gyro parameters are excited, but too weakly"), verdict
     assert "predicted one-sigma scale K_g[0,0] (ppm)" in verdict and "about its x axis" in verdict, verdict
     assert solve_message.startswith(verdict + " (magyro observe says the same; --force solves anyway"), solve_message
+    assert "magyro solve --accelerometer" not in observed.stdout   # text from before the accelerometer's default
+    assert "to calibrate the accelerometer well (magyro solve calibrates it by default" in observed.stdout
     steps = [line for line in solved.stderr.splitlines() if line.startswith("magyro step: ")]
     assert steps[-1] == "magyro step: the accuracy the motion can give (magyro observe's verdict)", steps
     assert not any("least squares" in line or "IPOPT" in line for line in steps), steps

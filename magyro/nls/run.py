@@ -250,5 +250,7 @@ def accelerometer_gate(cal: Calibration, options: Options) -> list[str]:
                 "about its own middle, with a few seconds still between turns")
     if options.force:
         return [f"solved with --force although {summary}"]
-    raise AccelerometerRefused(f"{summary} (--force reports it anyway; with --no-accelerometer the gyro and the "
-                               f"magnetometer are calibrated alone)")
+    # --force alone does not report it: by default an accelerometer past its bound is left out, forced or not
+    # (`magyro.api.solved_with_history`); only with --accelerometer does --force keep it
+    raise AccelerometerRefused(f"{summary} (--accelerometer --force reports it anyway; with --no-accelerometer the "
+                               f"gyro and the magnetometer are calibrated alone)")

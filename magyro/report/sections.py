@@ -146,7 +146,7 @@ def parameter_rows(cal, check=None) -> list[ParameterRow]:
 
 
 def accelerometer_rows(acc) -> list[ParameterRow]:
-    """The accelerometer's parameters (`magyro solve --accelerometer`) in readable units, each with its std: scale
+    """The accelerometer's parameters (solved with the gyro, by default when the session has one) in readable units, each with its std: scale
     factors (K_a's diagonal - 1, ppm), non-orthogonality (above it, as angles), bias (m/s^2) and C_b_a's Euler
     angles. Not judged against the targets, which are the gyro's."""
     rows = []
@@ -171,10 +171,10 @@ def accelerometer_details(acc) -> str:
     digits = {"ppm": 0, "deg": 3, "m/s²": 4}
     body = [[r.label, f"{r.value:+.{digits[r.unit]}f}", f"{r.std:.{digits[r.unit]}f}", r.unit]
             for r in accelerometer_rows(acc)]
-    body.append(["gravity it was calibrated against (given)", f"{acc.g_m_s2:.5f}", "", "m/s²"])
+    body.append([f"gravity it was calibrated against ({acc.gravity_source})", f"{acc.g_m_s2:.5f}", "", "m/s²"])
     return ("<h3>Accelerometer</h3>" + table(["parameter", "estimate", "± 1σ", "unit"], body, "numbers params")
-            + "<p class='small'>Solved in the same least squares (<code>magyro solve --accelerometer</code>) against "
-            "gravity: f_a = K_a y_a + ε_a in the accelerometer's frame a, f_b = C_b_aᵀ f_a in the gyro's. Scale "
+            + "<p class='small'>Solved in the same least squares as the gyro (<code>magyro solve</code> calibrates it by "
+            "default when the session has one) against gravity: f_a = K_a y_a + ε_a in the accelerometer's frame a, f_b = C_b_aᵀ f_a in the gyro's. Scale "
             "factors are K_a's diagonal minus 1 in ppm; non-orthogonality is K_a's off-diagonal as an angle; the "
             "misalignment is C_b_a (gyro to accelerometer frame) as roll, pitch, yaw. Not judged against the "
             "targets, which are the gyro's.</p>")
