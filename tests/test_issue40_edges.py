@@ -72,3 +72,35 @@ def test_the_accelerometer_left_out_names_the_flags_that_report_it(broad02_acc_s
         LeastSquares().calibrate_with_history(session, Options(accelerometer=True))
     kept, _ = LeastSquares().calibrate_with_history(session, Options(accelerometer=True, force=True))   # as it says
     assert kept.accelerometer is not None and any(w.startswith("solved with --force although the hand") for w in kept.warnings)
+
+
+# --------------------------------------------------------------------------- the EKF and the accelerometer
+
+
+def test_the_ekf_says_it_leaves_the_accelerometer_out(broad02_acc_solved):
+    """`--method ekf` on a session with an accelerometer calibrated the gyro alone without a word. The flow of
+    `magyro.calibrate` with a stand-in for the filter (its own result: BROAD 02's calibration without the
+    accelerometer); `--no-accelerometer` and the least squares say nothing."""
+    import copy
+
+    import magyro
+    from magyro.api import calibrate_with_history
+    from magyro.methods import accelerometer_not_calibrated
+    from magyro.options import Options
+
+    session, solved = broad02_acc_solved
+
+    class Filter:
+        name = "ekf"
+
+        def calibrate_with_history(self, _session, _options):
+            return dataclasses.replace(copy.deepcopy(solved), accelerometer=None, warnings=[]), None
+
+    cal, _ = calibrate_with_history(session, Options(), Filter())
+    said = [w for w in cal.warnings if w.startswith("accelerometer not calibrated")]
+    assert len(said) == 1 and "calibrates the gyro and the magnetometer only" in said[0], cal.warnings
+    assert "the default method, the least squares (--method nls), calibrates the accelerometer" in said[0]
+    assert accelerometer_not_calibrated(magyro.EKF(), Options(), session) == said[0]
+    assert accelerometer_not_calibrated(magyro.EKF(), Options(accelerometer=False), session) is None
+    assert accelerometer_not_calibrated(magyro.NLS(), Options(), session) is None
+    assert accelerometer_not_calibrated(magyro.EKF(), Options(), dataclasses.replace(session, acc_m_s2=None)) is None
