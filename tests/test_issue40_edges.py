@@ -104,3 +104,27 @@ def test_the_ekf_says_it_leaves_the_accelerometer_out(broad02_acc_solved):
     assert accelerometer_not_calibrated(magyro.EKF(), Options(accelerometer=False), session) is None
     assert accelerometer_not_calibrated(magyro.NLS(), Options(), session) is None
     assert accelerometer_not_calibrated(magyro.EKF(), Options(), dataclasses.replace(session, acc_m_s2=None)) is None
+
+
+# --------------------------------------------------------------------------- matplotlib's hint
+
+
+def test_the_matplotlib_hint_names_the_install_from_a_clone_too(monkeypatch):
+    """README's first command installs magyro from its clone, where 'magyro[plot]' fetches another copy from PyPI:
+    every 'needs matplotlib' message names both."""
+    import sys
+
+    import pytest
+
+    from magyro.errors import InputError
+    from magyro.report.build import _require_matplotlib
+    from magyro.report.figures import new_figure
+    from magyro.observability.plot import require_matplotlib
+
+    monkeypatch.setitem(sys.modules, "matplotlib", None)          # import matplotlib: ImportError
+    monkeypatch.setitem(sys.modules, "matplotlib.figure", None)
+    for needs in (_require_matplotlib, lambda: new_figure(1.0, 1.0), require_matplotlib):
+        with pytest.raises(InputError) as refused:
+            needs()
+        message = str(refused.value)
+        assert "pip install 'magyro[plot]', or pip install '.[plot]' in a clone of magyro" in message, message

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from magyro.errors import InputError
+from magyro.text import PLOT_INSTALL
 from magyro.report.embed import EmbeddedFigure, embed_png
 
 RAW, CALIBRATED, SPLIT = "#c0392b", "#1f5fa8", "#e08a1e"   # the page's colours for raw, calibrated, split-half
@@ -25,7 +26,7 @@ def new_figure(width_in: float, height_in: float):
     try:
         from matplotlib.figure import Figure
     except ImportError:
-        raise InputError("magyro report needs matplotlib for its figures: pip install 'magyro[plot]'") from None
+        raise InputError(f"magyro report needs matplotlib for its figures, which is not installed: {PLOT_INSTALL}") from None
     return Figure(figsize=(width_in, height_in), layout="constrained")
 
 
