@@ -128,3 +128,23 @@ def test_the_matplotlib_hint_names_the_install_from_a_clone_too(monkeypatch):
             needs()
         message = str(refused.value)
         assert "pip install 'magyro[plot]', or pip install '.[plot]' in a clone of magyro" in message, message
+
+
+# --------------------------------------------------------------------------- two lags for one trial
+
+
+def test_the_checks_lag_says_it_is_a_coarse_estimate_and_not_the_solves():
+    """BROAD 02: the check said 13.5/11.5 ms, the solve 10.23 +/- 0.45 ms, with no word on why. The check's line
+    (terminal and report) now says what its estimate is and that the solve's own is the one used."""
+    from pathlib import Path
+
+    from magyro.api import check_file
+    from magyro.front.findings import lag_line
+
+    check = check_file(Path(__file__).resolve().parents[1] / "data" / "broad-02.parquet")
+    line = [x for x in check.table().splitlines() if x.startswith("magnetometer lags")]
+    assert line == [lag_line(check.lag_s)], check.table()
+    assert "lags the gyro by 13.5 ms at the start, lags the gyro by 11.5 ms at the end (a coarse cross-correlation" \
+        in line[0], line
+    assert "the solve fits its own, finer lag with the calibration, which may differ by a few ms, and uses that one" \
+        in line[0], line

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from magyro.front.findings import lag_line
 from magyro.report import figures
 from magyro.report.fit_sections import residual_section, split_section  # noqa: F401  (sections 4 and 5)
 from magyro.report.section import FAIR, GOOD, POOR, Section, esc, num, table  # noqa: F401  (esc: public)
@@ -63,8 +64,7 @@ def recording_section(raw, repaired, check) -> Section:
     details = table(["sensor", "samples", "rate (Hz)", "distinct (Hz)", "jitter (ms)", "span (s)", "held (%)",
                      "gaps", "clock"], rows, "numbers")
     if len(check.lag_s) == 2:
-        details += (f"<p>The magnetometer lags the gyro by {check.lag_s[0] * 1e3:.1f} ms at the start and "
-                    f"{check.lag_s[1] * 1e3:.1f} ms at the end.</p>")
+        details += f"<p>{esc(lag_line(check.lag_s).capitalize())}.</p>"
     if check.findings:
         items = []
         for f in check.findings:
