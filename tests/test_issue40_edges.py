@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import pytest
+
 
 # --------------------------------------------------------------------------- text from before the default
 
@@ -41,8 +43,6 @@ def test_the_accelerometer_left_out_names_the_flags_that_report_it(broad02_acc_s
     (the solve re-judges it unforced); only `--accelerometer --force` reports it. A hand of 2 m/s^2 (BROAD's fast
     trials) on BROAD 02's calibration, through the default flow with a stand-in for the least squares."""
     import copy
-
-    import pytest
 
     from magyro.api import solved_with_history
     from magyro.errors import AccelerometerRefused
@@ -114,8 +114,6 @@ def test_the_matplotlib_hint_names_the_install_from_a_clone_too(monkeypatch):
     every 'needs matplotlib' message names both."""
     import sys
 
-    import pytest
-
     from magyro.errors import InputError
     from magyro.report.build import _require_matplotlib
     from magyro.report.figures import new_figure
@@ -148,3 +146,34 @@ def test_the_checks_lag_says_it_is_a_coarse_estimate_and_not_the_solves():
         in line[0], line
     assert "the solve fits its own, finer lag with the calibration, which may differ by a few ms, and uses that one" \
         in line[0], line
+
+
+# --------------------------------------------------------------------------- information that is not a warning
+
+
+def test_how_the_solve_stopped_and_the_hands_reach_say_whether_they_matter(broad02_acc_solved):
+    """BROAD 02's every real solve printed "IPOPT's looser 'acceptable' tolerance" (the report: a raw
+    Solved_To_Acceptable_Level), which read like a warning; BROAD 03 'a position std of 1.77 m, more than a hand
+    reaches' without saying whether that matters. Both are information, and say so."""
+    import copy
+
+    pytest.importorskip("matplotlib")
+    from magyro.report.sections import calibration_section
+
+    cal = broad02_acc_solved[1]
+    assert cal.solver.status == "Solved_To_Acceptable_Level"      # magyro's normal stop on real data
+    lines = cal.table().splitlines()
+    solver = [line for line in lines if line.startswith("solver: ")]
+    assert solver[0].startswith("solver: nls converged: chi^2 stopped changing (magyro's stop for IPOPT) and a "
+                                "further Gauss-Newton step would lower it by only "), solver
+    assert ", so the result is final, " in solver[0], solver
+    assert "looser" not in cal.table() and not [line for line in lines if line.startswith("warning:")], lines
+    section = calibration_section(cal)
+    assert "Solved_To_Acceptable_Level" not in section.sentence + section.details
+    assert "(nls converged, " in section.sentence and "so the result is final" in section.details
+
+    far = copy.deepcopy(cal)
+    far.solver.details["hand_states"]["reach_m"] = 1.77             # BROAD 03's
+    hand = [line for line in far.table().splitlines() if line.startswith("the hand's velocity solved")]
+    assert "a position std of 1.77 m, more than a hand reaches (0.5 m)" in hand[0], hand
+    assert "so this matters only through that std: nothing else to do" in hand[0], hand

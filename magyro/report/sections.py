@@ -16,6 +16,7 @@ from magyro.front.findings import lag_line
 from magyro.report import figures
 from magyro.report.fit_sections import residual_section, split_section  # noqa: F401  (sections 4 and 5)
 from magyro.report.section import FAIR, GOOD, POOR, Section, esc, num, table  # noqa: F401  (esc: public)
+from magyro.result.parts import solver_outcome, solver_summary
 from magyro.text import significant
 
 # the calibration section judges each one-sigma against the accuracy targets (magyro.targets), as observe does
@@ -240,7 +241,8 @@ def calibration_section(cal, check=None, targets=None) -> Section:
                      f" ppm and its bias is {', '.join(f'{r.value:+.4f}' for r in acc_bias)} m/s², known to "
                      f"±{num(max(r.std for r in acc_scale), 2)} ppm and ±{num(max(r.std for r in acc_bias), 2)} m/s² "
                      "at most")
-    sentence += f" ({cal.solver.method} {cal.solver.status}, {cal.solver.iterations} iterations)."
+    sentence += (f" ({cal.solver.method} {'converged' if solved else solver_outcome(cal.solver.status)}, "
+                 f"{cal.solver.iterations} iterations).")
     has_split = any(r.split_std is not None for r in rows)
     has_rest = any(r.rest is not None for r in rows)
     header = ["parameter", "estimate", "± 1σ", *(["± 1σ split-half"] if has_split else []),
@@ -266,8 +268,7 @@ def calibration_section(cal, check=None, targets=None) -> Section:
         mag.append(["gyro noise density", f"{significant(np.rad2deg(cal.noise.gyro_density_rad_s_sqrt_hz))} deg/s/√Hz"])
         mag.append(["magnetometer noise (" + cal.mag_unit + ")", f"{significant(cal.noise.mag_std)}"])
     mag.append(["observability", f"rank {cal.observability.rank} of 12, condition {num(cal.observability.condition)}"])
-    mag.append(["solver", f"{cal.solver.method} {cal.solver.status}, {cal.solver.iterations} iterations, "
-                          f"{cal.solver.seconds:.2f} s"])
+    mag.append(["solver", solver_summary(cal.solver)])
     details += "<h3>Magnetometer and solve</h3>" + table(["", ""], mag, "keyvalue")
     details += ("<p class='small'>Scale factors are K_g's diagonal minus 1 in parts per million; non-orthogonality "
                 "is K_g's off-diagonal as an angle; the misalignment is C_b_m (gyro to magnetometer frame) as roll, "
@@ -277,7 +278,7 @@ def calibration_section(cal, check=None, targets=None) -> Section:
     fig = figures.calibration_figure(rows)
     caveat = ("" if status == GOOD else
               f"{known_to(above[0])}, above its {target_of(above[0], targets):g} {above[0].unit} target"
-              if not determined else f"the solver ended {cal.solver.status}" if not solved
+              if not determined else f"the solver {solver_outcome(cal.solver.status)}" if not solved
               else f"the motion excites only {cal.observability.rank} of the 12 parameters")
     return Section("calibration", "3. The calibration", status,
                    f"scale σ ≤ {num(sigma(worst_scale), 2)} ppm, bias σ ≤ {num(sigma(worst_bias), 2)} deg/s",
