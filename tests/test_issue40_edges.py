@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 
 
@@ -177,3 +178,38 @@ def test_how_the_solve_stopped_and_the_hands_reach_say_whether_they_matter(broad
     hand = [line for line in far.table().splitlines() if line.startswith("the hand's velocity solved")]
     assert "a position std of 1.77 m, more than a hand reaches (0.5 m)" in hand[0], hand
     assert "so this matters only through that std: nothing else to do" in hand[0], hand
+
+
+# --------------------------------------------------------------------------- one judgement of the halves
+
+
+def test_the_report_and_the_split_check_judge_the_halves_by_one_function():
+    """BROAD 02's halves (as solve --split-check and the report computed them, in round numbers): RMS z 1.2, the
+    largest |z| 3.6, but half the difference on scale x 8.7x the calibration's one-sigma (the halves are weaker than
+    the whole). The solve gave no warning while the report said 'the halves differ by 8.6x the reported one-sigma'.
+    Now both read SplitCheck.agrees; the one difference is shown, named as one, and judges nothing. (The real
+    trial: tests/test_report.py::test_the_verdict_and_the_sections_agree_on_the_real_recording.)"""
+    pytest.importorskip("matplotlib")
+    from magyro.report.fit_sections import split_section
+    from magyro.result.consistency import split_warning
+    from magyro.result.consistency_record import SplitCheck
+
+    def row(z, reported, half):
+        return {"first": 1.0, "second": 1.0, "difference": 2 * half, "z": z, "reported_std": reported,
+                "split_std": half}
+
+    z = [3.6, 1.0, -0.8, 0.5, -0.4, 0.9, 0.7, -1.1, 0.3, 0.6, -0.5, 0.2]
+    names = ["K_g[0,0]", "K_g[1,1]", "K_g[2,2]", "K_g[0,1]", "K_g[0,2]", "K_g[1,2]", "bias_x_deg_s", "bias_y_deg_s",
+             "bias_z_deg_s", "misalignment_dx_deg", "misalignment_dy_deg", "misalignment_dz_deg"]
+    parameters = {n: row(v, 5.24e-4, 4.557e-3 if n == "K_g[0,0]" else 1e-4) for n, v in zip(names, z)}
+    rms = float(np.sqrt(np.mean(np.square(z))))
+    agreeing = SplitCheck(((37.1, 96.5), (96.5, 156.0)), parameters=parameters, worst="K_g[0,0]", max_abs_z=3.6,
+                          rms_z=rms)
+    assert agreeing.agrees and split_warning(agreeing) is None
+    section = split_section(agreeing, computed_here=True)
+    assert section.status == "good" and section.caveat == "", section.sentence
+    assert "reported one-sigma" not in section.sentence and "8.7" not in section.sentence
+    assert "half the difference" in section.details and "never in its place" in section.details
+    apart = dataclasses.replace(agreeing, rms_z=2.5)
+    assert not apart.agrees and split_warning(apart) is not None
+    assert split_section(apart, computed_here=True).status == "fair"

@@ -97,7 +97,7 @@ def recording_figure(raw, repaired, check):
 
 
 def calibration_figure(rows):
-    """Each gyro parameter with its one-sigma (and the split-half one when known), in four groups by unit.
+    """Each gyro parameter with its one-sigma (and half the split-half difference when known), in four groups by unit.
 
     `rows`: the report's parameter rows (group, label, value, std, split_std, rest)."""
     groups = [("scale", "scale factor off 1 (ppm)"), ("nonorth", "non-orthogonality (deg)"),
@@ -112,7 +112,7 @@ def calibration_figure(rows):
         split = np.array([np.nan if r.split_std is None else r.split_std for r in mine])
         if np.isfinite(split).any():
             ax.errorbar(x + 0.12, values, yerr=np.nan_to_num(split), fmt="none", ecolor=SPLIT, elinewidth=1.2,
-                        capsize=3, label="± 1σ split-half")
+                        capsize=3, label="± half the split-half difference")
         ax.errorbar(x, values, yerr=[r.std for r in mine], fmt="o", color=CALIBRATED, ms=4, elinewidth=2,
                     capsize=3, label="estimate ± 1σ")
         rest = [(i, r.rest) for i, r in enumerate(mine) if r.rest is not None]

@@ -182,8 +182,9 @@ def accelerometer_details(acc) -> str:
 
 
 def sigma(r: ParameterRow) -> float:
-    """The honest one-sigma of a parameter: the split-half one when it is larger than the reported one."""
-    return max(r.std, r.split_std or 0.0)
+    """The calibration's one-sigma of a parameter, the one judged against the targets. Half the split-half
+    difference (`split_std`) is one difference, one draw of the error: shown beside it, never in its place."""
+    return r.std
 
 
 def target_of(r: ParameterRow, targets) -> float:
@@ -192,17 +193,15 @@ def target_of(r: ParameterRow, targets) -> float:
 
 
 def above_targets(rows, targets) -> list[ParameterRow]:
-    """The parameters whose honest one-sigma is above its target, worst (largest ratio) first."""
+    """The parameters whose one-sigma (the calibration's) is above its target, worst (largest ratio) first."""
     return sorted((r for r in rows if not sigma(r) <= target_of(r, targets)),
                   key=lambda r: -sigma(r) / target_of(r, targets))
 
 
 def known_to(r: ParameterRow) -> str:
-    """'scale x is known only to ±4497 ppm (the split-half one-sigma; reported ±668)'."""
+    """'scale x is known only to ±3038 ppm' (the calibration's one-sigma)."""
     name = {"scale": "scale", "nonorth": "non-orthogonality", "bias": "bias", "misalignment": "misalignment"}[r.group]
-    split = r.split_std is not None and r.split_std > r.std
-    return (f"{name} {r.axis} is known only to ±{num(sigma(r), 2)} {r.unit}"
-            + (f" (the split-half one-sigma; reported ±{num(r.std, 2)})" if split else ""))
+    return f"{name} {r.axis} is known only to ±{num(sigma(r), 2)} {r.unit}"
 
 
 def calibration_section(cal, check=None, targets=None) -> Section:
@@ -218,15 +217,13 @@ def calibration_section(cal, check=None, targets=None) -> Section:
         or cal.solver.status.lower() in ("converged", "ok", "given")
     above = above_targets(rows, targets)
     determined = not above
-    split_larger = any(r.split_std is not None and r.split_std > r.std for r in (worst_scale, worst_bias, worst_mis))
     status = GOOD if (solved and determined and cal.observability.rank == 12) else FAIR if solved else POOR
     scales = ", ".join(f"{r.value:+.0f}" for r in by["scale"])
     biases = ", ".join(f"{r.value:+.3f}" for r in by["bias"])
     judged = ("every one-sigma within the targets" if determined else
               f"{len(above)} of the 12 one-sigma above the targets ({targets.text()})")
-    which = "one-sigma (the larger of the reported and the split-half one)" if split_larger else "one-sigma"
     sentence = (f"The gyro's scale factors are off by {scales} ppm and its bias is {biases} deg/s, {judged}: "
-                f"the largest {which} is {num(sigma(worst_scale), 2)} ppm on scale {worst_scale.axis}, "
+                f"the largest one-sigma is {num(sigma(worst_scale), 2)} ppm on scale {worst_scale.axis}, "
                 f"{num(sigma(worst_bias), 2)} deg/s on bias {worst_bias.axis} and {num(sigma(worst_mis), 2)} deg on "
                 f"misalignment {worst_mis.axis}")
     if cal.rests is not None and cal.rests.seconds > 0:
@@ -245,7 +242,7 @@ def calibration_section(cal, check=None, targets=None) -> Section:
                  f"{cal.solver.iterations} iterations).")
     has_split = any(r.split_std is not None for r in rows)
     has_rest = any(r.rest is not None for r in rows)
-    header = ["parameter", "estimate", "± 1σ", *(["± 1σ split-half"] if has_split else []),
+    header = ["parameter", "estimate", "± 1σ", *(["half the split-half difference (one draw, not a σ)"] if has_split else []),
               *(["from the rests"] if has_rest else []), "unit"]
     digits = {"ppm": 0, "deg": 3, "deg/s": 4}
     body = []
