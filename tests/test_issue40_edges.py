@@ -213,3 +213,33 @@ def test_the_report_and_the_split_check_judge_the_halves_by_one_function():
     apart = dataclasses.replace(agreeing, rms_z=2.5)
     assert not apart.agrees and split_warning(apart) is not None
     assert split_section(apart, computed_here=True).status == "fair"
+
+
+# --------------------------------------------------------------------------- the accelerometer's verdict
+
+
+def test_the_report_judges_the_accelerometer_against_targets_of_its_own(broad02_acc_solved, tmp_path):
+    """The report gave the accelerometer no verdict. Now its one-sigma meet targets of their own (acc_* in the
+    [targets] table; defaults 2000 ppm, 0.1 deg, 0.02 m/s^2, 0.1 deg, each with its reason): one above its target
+    makes section 3 FAIR and is named, as a gyro's is. BROAD 02 (accelerometer std about 4200 ppm, 0.032 m/s^2,
+    0.46 deg) against gyro targets loose enough to pass."""
+    pytest.importorskip("matplotlib")
+    from magyro.report.sections import calibration_section
+    from magyro.targets import Targets, load_targets
+
+    cal = broad02_acc_solved[1]
+    gyro_passes = dict(scale_factor_ppm=1e6, non_orthogonality_deg=90.0, bias_deg_s=10.0, misalignment_deg=90.0)
+    default = calibration_section(cal, None, Targets(**gyro_passes))
+    assert default.status == "fair", default.sentence
+    assert "of its 12 one-sigma above its own targets (2000 ppm scale, 0.1 deg non-orthogonality, 0.02 m/s² bias, " \
+           "0.1 deg misalignment)" in default.sentence, default.sentence
+    assert default.caveat.startswith("the accelerometer's ") and "above its" in default.caveat, default.caveat
+    assert "target (1σ)" in default.details
+    assert "by default a bias of 0.02 m/s², which tilts gravity's direction by 0.12 deg" in default.details
+    path = tmp_path / "targets.toml"
+    path.write_text("[targets]\nscale_factor_ppm = 1e6\nnon_orthogonality_deg = 90\nbias_deg_s = 10\n"
+                    "misalignment_deg = 90\nacc_scale_factor_ppm = 20000\nacc_non_orthogonality_deg = 2\n"
+                    "acc_bias_m_s2 = 0.2\nacc_misalignment_deg = 2\n", encoding="utf-8")
+    loose = calibration_section(cal, None, load_targets(path))
+    assert loose.status == "good" and loose.caveat == "", loose.sentence
+    assert "every one-sigma within its own targets" in loose.sentence
