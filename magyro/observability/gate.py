@@ -228,18 +228,6 @@ def accuracy_summary(shortfalls: list[tuple[str, float, float, str]], what: str 
     return f"{what} {', '.join(parts)}{more}; {'; '.join(advice[:2])}"
 
 
-ACCURACY_CHECK_BELOW_SNR = 100.0   # 10x the rank's floor; above, every test motion met the default bounds
-
-
-def needs_accuracy_check(analysis: ObservabilityAnalysis) -> bool:
-    """Is the motion weak enough somewhere that its predicted accuracy must be computed (about 0.25 s on a 100 s
-    session)? Below 100 in signal to noise along the weakest direction: a weak third axis of +/-30 deg reached
-    23 (2.1 % predicted scale std, refused), +/-45 deg 68 (0.95 %), +/-60 deg 135; BROAD 238-654, simulations
-    over 1000."""
-    snr = analysis.signal_to_noise
-    return snr is None or not analysis.full_rank or float(np.min(snr)) < ACCURACY_CHECK_BELOW_SNR
-
-
 REFUSAL_BOUND_NOTE = ("this is the refusal bound, Options.max_std or --max-std-*; the accuracy targets, --targets, "
                       "are a separate and stricter notion")
 
