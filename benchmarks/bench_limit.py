@@ -63,7 +63,7 @@ PHASES = [
     ("magyro.nls.solve", "nominal_attitudes", "nominal attitude", 0),
     ("magyro.nls.solve", "aligned_stretches", "aligned stretches", 0),
     ("magyro.nls.solve", "JointProblem", "problem object (kernels loaded)", 0),
-    ("magyro.nls.run", "predicted_accuracy_gate", "accuracy gate", 0),
+    ("magyro.nls.run", "excitation_gate", "accuracy gate (observe's prediction)", 0),
     ("magyro.nls.run", "solve_passes", "solve passes", 0),
     ("magyro.nls.problem", "JointProblem.solver", "graphs and nlpsol", 1),
     ("magyro.nls.solve", "problem_parameters", "parameter vector", 1),

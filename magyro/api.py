@@ -48,7 +48,7 @@ def calibrate(session: Session, options: Options | None = None, method=None) -> 
 def calibrate_with_history(session: Session, options: Options | None = None, method=None):
     """(Calibration, the EKF's history or None): `calibrate`, keeping the filter's estimates over time when the
     method has them. The calibration is the same, number for number, as `calibrate`'s."""
-    from magyro.methods import check_method_options, with_accelerometer_decided
+    from magyro.methods import accelerometer_not_calibrated, check_method_options, with_accelerometer_decided
     from magyro.progress import step
 
     options = options or Options()
@@ -58,6 +58,7 @@ def calibrate_with_history(session: Session, options: Options | None = None, met
     session, recording = checked_recording(session, options)
     cal, history = solved_with_history(method, session, replace(options, split_check=False), options.accelerometer is None
                                        and with_accelerometer_decided(method, options, session).accelerometer)
+    cal.warnings.extend(filter(None, [accelerometer_not_calibrated(method, options, session)]))   # the EKF's: said
     options = replace(options, accelerometer=cal.accelerometer is not None)   # the halves as the whole
     step("checking that the result explains the recording")
     cal.recording = recording

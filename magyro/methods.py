@@ -53,6 +53,18 @@ def with_accelerometer_decided(method, options, session):
     return replace(options, accelerometer=bool(has and isinstance(method, NLS)))
 
 
+def accelerometer_not_calibrated(method, options, session) -> str | None:
+    """The warning for a session with an accelerometer that the method leaves out without being asked to (the EKF
+    calibrates the gyro and the magnetometer only), or None: `--no-accelerometer` asked for it, or the method does
+    calibrate it."""
+    has = session.acc_m_s2 is not None and len(session.acc_m_s2) >= 2
+    if not has or isinstance(method, NLS) or (options is not None and options.accelerometer is False):
+        return None
+    return (f"accelerometer not calibrated: the session has one, but the {getattr(method, 'name', 'chosen')} method "
+            "(--method ekf, the paper's two steps) calibrates the gyro and the magnetometer only; the default method, "
+            "the least squares (--method nls), calibrates the accelerometer in the same solve")
+
+
 def calibrator(method):
     """`run_method` with the method fixed: a function (session, options) -> Calibration."""
     return lambda session, options=None: run_method(method, session, options)

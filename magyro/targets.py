@@ -4,7 +4,7 @@ There are two notions, and only two:
 
 * **targets** (`Targets`, this module) -- the one-sigma a user *asks for*. `observe` and `watch` call a
   motion "marginal" (not yet enough) when a predicted std is above one; `report` calls the calibration
-  section FAIR, not GOOD, when a std (the larger of the reported and the split-half one) is above one;
+  section FAIR, not GOOD, when a std of the calibration (the gyro's, or its accelerometer's) is above one;
   `batch` rejects a device whose std is above one. One set of defaults; one TOML file changes them for
   every command (``--targets FILE``, a ``[targets]`` table; `load_targets`).
 * **the refusal bound** (`magyro.options.StdBounds`, ``Options.max_std``, ``--max-std-*``) -- the std
@@ -23,6 +23,18 @@ Why the default targets are what they are (a hand-held or vehicle device dead-re
   over a minute of ordinary turning (a few hundred degrees).
 * misalignment 0.1 deg: the gyro's turning expressed in the magnetometer's frame is off by this angle,
   the same size as the non-orthogonality it is confused with.
+
+The accelerometer's own (`acc_*`; read by `report`, which judges a calibration's accelerometer against them):
+a device that uses its accelerometer for gravity's direction (tilt) and, briefly, for motion:
+
+* bias 0.02 m/s^2: 0.02 / 9.81 rad = 0.12 deg of tilt, and 1 m of position in 10 s of integrating it
+  (b t^2 / 2); the size of a consumer accelerometer's bias after a good six-pose calibration.
+* scale factor 2000 ppm: 2000e-6 x g = 0.02 m/s^2 along an axis that points up, the bias target's size;
+  0.06 deg of tilt at most (half the scale error, at 45 deg).
+* non-orthogonality 0.1 deg: sin(0.1 deg) x g = 0.017 m/s^2 of gravity leaks into another axis, again
+  the bias target's size.
+* misalignment 0.1 deg: gravity's direction, turned into the gyro's frame (C_b_a), off by 0.1 deg; the
+  gyro's misalignment target, so that neither frame spoils the other.
 
 A recording of a phone turned by hand for two minutes (data/broad-02.parquet) reaches about 3000 ppm and
 0.03 deg/s: "marginal" -- usable, not what was asked for. Loosen the targets in a file when that is enough.
@@ -43,17 +55,27 @@ OTHER_TABLES = ("limits",)   # a batch limits file may carry the [targets] table
 @dataclass(frozen=True)
 class Targets:
     """One-sigma accuracy a calibration should reach; a std above any of them is 'marginal' (observe, watch),
-    FAIR (report) or rejected (batch). The defaults and why: the module's docstring."""
+    FAIR (report) or rejected (batch). The `acc_*` are the accelerometer's, judged by the report. The defaults
+    and why: the module's docstring."""
 
     scale_factor_ppm: float = 1000.0        # diagonal of K_g
     non_orthogonality_deg: float = 0.1      # off-diagonal of K_g, as an angle
     bias_deg_s: float = 0.01
     misalignment_deg: float = 0.1
+    acc_scale_factor_ppm: float = 2000.0    # the accelerometer's (report): diagonal of K_a
+    acc_non_orthogonality_deg: float = 0.1  # off-diagonal of K_a, as an angle
+    acc_bias_m_s2: float = 0.02
+    acc_misalignment_deg: float = 0.1       # C_b_a, gyro to accelerometer frame
 
     def text(self) -> str:
         """'1000 ppm scale, 0.1 deg non-orthogonality, 0.01 deg/s bias, 0.1 deg misalignment'."""
         return (f"{self.scale_factor_ppm:g} ppm scale, {self.non_orthogonality_deg:g} deg non-orthogonality, "
                 f"{self.bias_deg_s:g} deg/s bias, {self.misalignment_deg:g} deg misalignment")
+
+    def accelerometer_text(self) -> str:
+        """'2000 ppm scale, 0.1 deg non-orthogonality, 0.02 m/s^2 bias, 0.1 deg misalignment' (the accelerometer's)."""
+        return (f"{self.acc_scale_factor_ppm:g} ppm scale, {self.acc_non_orthogonality_deg:g} deg non-orthogonality, "
+                f"{self.acc_bias_m_s2:g} m/s² bias, {self.acc_misalignment_deg:g} deg misalignment")
 
 
 KEYS = tuple(f.name for f in dataclasses.fields(Targets))

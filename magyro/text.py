@@ -112,3 +112,8 @@ def significant(value: float, digits: int = 3) -> str:
     if rounded == 0 or 1e-4 <= abs(rounded) < 1e7:
         return np.format_float_positional(rounded, trim="-")
     return f"{rounded:.{digits - 1}e}"
+
+
+# how to add matplotlib, for every message that needs it: from PyPI, or from a clone (README's first command
+# installs magyro from its clone, where 'magyro[plot]' would fetch another copy from PyPI)
+PLOT_INSTALL = "pip install 'magyro[plot]', or pip install '.[plot]' in a clone of magyro"

@@ -83,6 +83,25 @@ def test_the_fusion_x_imu_held_magnetometer_gets_sane_numbers_and_a_coverage_ref
     assert "turn the device more" in message, message
 
 
+def test_solve_refuses_the_fusion_recording_with_observes_verdict_before_any_solver_work(sessions, monkeypatch):
+    """Issue 40: `solve` ran IPOPT for 33-39 s before exit 3 and named other axes and numbers than `observe` (its
+    gate's prediction was skipped on a high signal to noise, and then made from the solve's own problem). Now one
+    prediction decides both, before the least squares is built: the same exit, the same axes and numbers."""
+    monkeypatch.setenv("MAGYRO_PROGRESS", "lines")        # each step on its own stderr line: what ran is seen
+    solved = run_clean("solve", sessions["fusion"])
+    observed = run_clean("observe", sessions["fusion"])
+    solve_message, observe_message = refusal(solved, 3), refusal(observed, 3)
+    verdict = observe_message.split(" (magyro solve refuses it too)")[0]
+    assert verdict.startswith("insufficient excitation: all 12 gyro parameters are excited, but too weakly"), verdict
+    assert "predicted one-sigma scale K_g[0,0] (ppm)" in verdict and "about its x axis" in verdict, verdict
+    assert solve_message.startswith(verdict + " (magyro observe says the same; --force solves anyway"), solve_message
+    assert "magyro solve --accelerometer" not in observed.stdout   # text from before the accelerometer's default
+    assert "to calibrate the accelerometer well (magyro solve calibrates it by default" in observed.stdout
+    steps = [line for line in solved.stderr.splitlines() if line.startswith("magyro step: ")]
+    assert steps[-1] == "magyro step: the accuracy the motion can give (magyro observe's verdict)", steps
+    assert not any("least squares" in line or "IPOPT" in line for line in steps), steps
+
+
 def test_the_sensor_logger_phone_recordings_are_checked_clean_and_judged_on_their_motion(sessions):
     """simorxb: 27 s of an Android phone (hard iron ~600 uT); bennyjhui: 10 s of an iPhone's calibrated files,
     field 52-181 uT. Neither holds enough motion for a calibration; both are judged on it (exit 3), never

@@ -31,14 +31,14 @@ from magyro.cli.results import apply_command, export_command, report_command, va
 from magyro.cli.simulation import montecarlo, plan_command, simulate  # noqa: E402
 from magyro.cli.solve import solve  # noqa: E402
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, help="Gyroscope calibration via the magnetometer (Wu & Pei).")
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, help="Gyroscope calibration via the magnetometer (Wu & Pei), with the accelerometer in the same least squares when the session has one.")
 
 
 @app.callback()
 def main_options(
     version: bool = typer.Option(False, "--version", callback=version_callback, is_eager=True, help="Print the version and exit."),
 ):
-    """Calibrate a gyroscope with the magnetometer on the same board, no turntable needed."""
+    """Calibrate a gyroscope with the magnetometer on the same board (and the accelerometer, when the session has one), no turntable needed."""
 
 
 app.command(cls=Command)(as_written(solve))

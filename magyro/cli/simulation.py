@@ -15,7 +15,7 @@ def simulate(
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="Session file to write (.parquet or .csv); the truth goes beside it as NAME.truth.json. With --seeds: the folder to write the fleet in (created)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Noise seed (default 0; the motion is fixed by the problem)."),
     seeds: Optional[str] = typer.Option(None, "--seeds", help="A fleet: one device per seed, e.g. 0-199, 3 or 1,5,9, each with its own sensor errors drawn from the problem's spread section; writes NAME-SEED.parquet, its truth and manifest.csv into the -o folder."),
-    stream: bool = typer.Option(False, "--stream", help="Write the recording to standard output as CSV lines (t,gx,gy,gz,,, and t,,,,mx,my,mz), paced in real time, for magyro watch -."),
+    stream: bool = typer.Option(False, "--stream", help="Write the recording to standard output as CSV lines (t,gx,gy,gz,,, and t,,,,mx,my,mz, and t,,,,,,,ax,ay,az for a problem with an [accelerometer]), paced in real time, for magyro watch -."),
     speed: float = typer.Option(1.0, "--speed", help="With --stream: this many times faster than real time (0: as fast as possible)."),
 ):
     """A simulated session and its true parameters from a problem file (or a fleet of devices with --seeds, or a

@@ -40,7 +40,7 @@ def solve(
     gravity: float = typer.Option(STANDARD_GRAVITY_M_S2, "--gravity", min=9.7, max=9.9, help="The local gravity in m/s^2 the accelerometer is calibrated against."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),
 ):
-    """The joint calibration: magnetometer ellipsoid, gyro K_g, bias, misalignment, field, attitude.
+    """The joint calibration: magnetometer ellipsoid, gyro K_g, bias, misalignment, field, attitude, and the accelerometer (K_a, bias, C_b_a) when the session has one.
 
     --stride, --loss, --hard-iron-walk, --hand-states, --time-offset and --split-check apply to the nls method only.
     """

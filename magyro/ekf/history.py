@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from magyro.errors import InputError
+from magyro.text import PLOT_INSTALL
 from magyro.io import write_atomically
 
 HISTORY_ROWS = 2000             # default number of recorded instants in a batch run
@@ -110,7 +111,7 @@ def plot_history(history: EkfHistory, path, title: str | None = None) -> None:
     try:
         from matplotlib.figure import Figure
     except ImportError:
-        raise InputError("plotting needs matplotlib: pip install 'magyro[plot]'") from None
+        raise InputError(f"plotting needs matplotlib, which is not installed: {PLOT_INSTALL}") from None
     df = history.to_frame()
     t = df["t_s"].to_numpy()
     fig = Figure(figsize=(15, 4.5), constrained_layout=True)

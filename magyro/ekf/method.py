@@ -42,8 +42,8 @@ from magyro.front import ellipsoid
 from magyro.front.initial import with_time_offset
 from magyro.front.noise import whitened_effective_scale
 from magyro.nls.diagnostics import rest_check
-from magyro.nls.information import predicted_std
-from magyro.observability.gate import accuracy_gate, unexcited_directions
+from magyro.observability.gate import unexcited_directions
+from magyro.observability.prediction import excitation_gate
 from magyro.front.prepare import Prepared, prepare
 from magyro.options import Options
 from magyro.result.calibration import Calibration
@@ -96,10 +96,9 @@ class EKF:
         options = options or Options()
         t_start = time.perf_counter()
         prep = prepare(session, options)
-        # the NLS's gate, always: the least squares may skip it on a strong excitation because a solve that then
-        # fails to converge asks it again; a filter always ends, so it must ask first (the x-IMU example's quarter
-        # sphere passes the signal-to-noise shortcut, and the filter returned a 27 deg misalignment at exit 0)
-        gate_warnings = accuracy_gate(predicted_std(prep, options), options)
+        # the gate of the least squares and the verdict of observe, from the same prediction (the x-IMU example's
+        # quarter sphere, unchecked, had the filter return a 27 deg misalignment at exit 0)
+        gate_warnings = excitation_gate(prep, options, self)
         s = prep.session
         if self.magnetometer is not None:
             ref = known_magnetometer(*self.magnetometer)

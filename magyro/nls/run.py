@@ -1,9 +1,9 @@
 """From a Session to a Calibration by the joint least squares: the steps in order.
 
     1. the shared front end (`magyro.front.prepare`): rests, noise, ellipsoid, unit check, gate
-    2. linearisation, grid and problem; IPOPT with warm re-solves (`magyro.nls.solve`)
-    3. the accuracy gate: the information of the problem at its start says what the solve can reach;
-       too little is refused (exit 3) before any iteration
+    2. the accuracy gate, before any solver work: the accuracy the motion can give, predicted as `magyro observe`
+       predicts it (`magyro.observability.prediction`, one computation for both); too little is refused (exit 3)
+    3. linearisation, grid and problem; IPOPT with warm re-solves (`magyro.nls.solve`)
     4. the Gauss-Newton decrement check: a solve that could still improve is refused
     5. the std with the room's field disturbance marginalised (`magyro.nls.disturbance`), the white std beside it,
        fit statistics and warnings assembled into the result (`magyro.nls.diagnostics`)
@@ -21,7 +21,6 @@ from magyro.result.parts import solver_outcome
 from magyro.front import noise
 from magyro.front.prepare import Prepared, prepare
 from magyro.nls.diagnostics import assemble
-from magyro.nls.information import information_std
 from magyro.nls.method import NLS
 from magyro.nls.problem import JointProblem, Linearisation
 from magyro.nls.reduction import gauss_newton_decrement, reduce_hessian
@@ -29,12 +28,13 @@ from magyro.nls.hand_motion import hand_covariance_term, shifted_hand_covariance
 from magyro.nls.hand_states import hand_in_frame_i, hand_prior, hand_reach_m, interleave_hand, prior_information
 from magyro.nls.accelerometer import (HAND_LIMIT_OF_G, HandMotion, hand_motion, hand_too_big,
                                       still_hand_weights, white_variance)
-from magyro.nls.solve import (build_problem, problem_parameters, residual_matrix, solve_passes,
+from magyro.nls.solve import (build_problem, residual_matrix, solve_passes,
                               solved_accelerometer_residuals, solved_excess)
 from magyro.nls.disturbance import disturbance_covariance
 from magyro.nls.variance import secant_factor, variance_components
 from magyro.nls.trajectory import attitude_trajectory, solved_attitudes
-from magyro.observability.gate import REFUSAL_BOUND_NOTE, accuracy_gate, accuracy_shortfalls, accuracy_summary, needs_accuracy_check
+from magyro.observability.gate import REFUSAL_BOUND_NOTE, accuracy_shortfalls, accuracy_summary
+from magyro.observability.prediction import excitation_gate
 from magyro.options import Options
 from magyro.progress import step
 from magyro.result.calibration import Calibration
@@ -50,12 +50,13 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     t_start = time.perf_counter()
     step("rests, noise levels and the magnetometer's ellipsoid")
     prep = prepare(session, options)
+    step("the accuracy the motion can give (magyro observe's verdict)")
+    gate_warnings = excitation_gate(prep, options, method)   # before any solver work, the same verdict as observe's
     step("the linear estimate and the least-squares problem")
     grid, lin, problem = build_problem(prep, options, method)
-    gate_warnings = predicted_accuracy_gate(problem, prep, lin, options)
     step(f"solving the least squares ({problem.n_x} unknowns, IPOPT)")
     sol = solve_passes(problem, prep, lin, method, level_estimator(problem, prep, lin))
-    first, hand = problem, None
+    hand = None
     if sol.hand_found:   # its first pass measured the hand: the passes go on with the hand's velocity as states
         hand = solved_hand_motion(problem, lin, sol)
         step("the hand's velocity as states: the least squares again")
@@ -70,9 +71,6 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
             f"--method ekf --force "
             f"gives an estimate whose std shows what is missing. {prep.analysis.summary()}", prep.analysis)
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
-        if not options.force and not gate_checked(prep):
-            # the excitation looked strong enough to skip the accuracy check; a failed solve says look again
-            predicted_accuracy_gate(first, prep, lin, options, always=True)
         raise SolverError(not_converged_message(sol, decrement))
     sol.stats["gauss_newton_decrement"] = decrement
     if problem.accelerometer and not problem.hand:
@@ -252,22 +250,7 @@ def accelerometer_gate(cal: Calibration, options: Options) -> list[str]:
                 "about its own middle, with a few seconds still between turns")
     if options.force:
         return [f"solved with --force although {summary}"]
-    raise AccelerometerRefused(f"{summary} (--force reports it anyway; with --no-accelerometer the gyro and the "
-                               f"magnetometer are calibrated alone)")
-
-
-def gate_checked(prep: Prepared) -> bool:
-    """Did the accuracy gate run before the solve (a motion weak somewhere, by the excitation's signal to noise)?"""
-    return needs_accuracy_check(prep.analysis)
-
-
-def predicted_accuracy_gate(problem: JointProblem, prep: Prepared, lin: Linearisation, options: Options,
-                            always: bool = False) -> list[str]:
-    """The accuracy the solve can reach, from its own problem at the start: refused below `options.max_std`
-    (exit 3), and with --force refused only when no unique solution exists; the warnings of a forced solve.
-    Run when the excitation is weak somewhere (`needs_accuracy_check`), or `always`."""
-    if not (always or gate_checked(prep)):
-        return []
-    p0 = problem_parameters(problem, prep, lin, prep.sigma_mag, lin.time_offset_s)
-    predicted = information_std(problem, lin, p0, prep.session)
-    return accuracy_gate(predicted, options)
+    # --force alone does not report it: by default an accelerometer past its bound is left out, forced or not
+    # (`magyro.api.solved_with_history`); only with --accelerometer does --force keep it
+    raise AccelerometerRefused(f"{summary} (--accelerometer --force reports it anyway; with --no-accelerometer the "
+                               f"gyro and the magnetometer are calibrated alone)")

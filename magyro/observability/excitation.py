@@ -23,19 +23,17 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 
 import numpy as np
 
 from magyro.errors import InputError, MagyroError, ObservabilityError
 from magyro.front import ellipsoid
 from magyro.front.prepare import Prepared, moving_session, prepare
-from magyro.nls.information import predicted_std_and_disturbance
 from magyro.nls.method import NLS
-from magyro.nls.solve import default_stride
 from magyro.observability.advice import weak_directions
-from magyro.observability.gate import (WELL_CONDITIONED, accuracy_shortfalls, accuracy_summary, ObservabilityAnalysis, cumulative_noise_matrix,
-                                       directional_rank)
+from magyro.observability.gate import (WELL_CONDITIONED, accuracy_shortfalls, ObservabilityAnalysis, cumulative_noise_matrix,
+                                       directional_rank, too_weak_reason)
+from magyro.observability.prediction import prediction_stride, predicted_accuracy  # noqa: F401  (kept importable here)
 from magyro.observability.gravity import observe_accelerometer
 from magyro.observability.matrix import cumulative_information, trapezoid_weights
 from magyro.observability.report import (SPHERE_BANDS, SPHERE_SECTORS, sphere_cell, unit_rows, Coverage, ObservabilityReport, Targets,
@@ -191,25 +189,21 @@ def coverage(t_gyro_s, rates_rad_s, field_m, rate_reference: str) -> Coverage:
 # --------------------------------------------------------------------------- the prediction and the verdict
 
 
-def prediction_stride(session: Session, method: NLS) -> int:
-    """The method's node stride, or the solve's when it leaves it open: the two share their kernels."""
-    return int(method.stride or default_stride(session))
-
-
 def predict(prep: Prepared | None, analysis: ObservabilityAnalysis, options: Options,
             method: NLS) -> tuple[Std | None, dict]:
-    """`nls.information.predicted_std` on a coarser node grid (see docs/observability.md), or None."""
+    """The solve's gate's prediction (`magyro.observability.prediction.predicted_accuracy`: one computation for
+    both), or None."""
     if prep is None:
         return None, {"note": "the magnetometer's soft/hard iron cannot be fitted, so no calibration is determined"}
-    stride = prediction_stride(prep.session, method)
-    start = time.perf_counter()
     try:
-        std, disturbance = predicted_std_and_disturbance(prep, options, method=dataclasses.replace(method, stride=stride))
+        predicted = predicted_accuracy(prep, options, method)
     except (MagyroError, np.linalg.LinAlgError) as e:
         if analysis.full_rank:
             raise
-        return None, {"stride": stride, "note": f"no prediction for a rank-deficient session ({e})"}
-    info = {"stride": stride, "seconds": time.perf_counter() - start,
+        return None, {"stride": prediction_stride(prep.session, method),
+                      "note": f"no prediction for a rank-deficient session ({e})"}
+    std, disturbance = predicted.std, predicted.disturbance
+    info = {"stride": predicted.stride, "seconds": predicted.seconds,
             "method": "Gauss-Newton information of the joint problem at the initial estimate, trajectory "
                       "marginalised, noise levels of the session, the field's wander measured and counted"}
     if disturbance is not None:
@@ -235,8 +229,7 @@ def judge(analysis: ObservabilityAnalysis, ellipsoid_problem: str | None, std: S
         return "marginal", "all 12 gyro parameters are excited, but their accuracy could not be predicted"
     shortfalls = accuracy_shortfalls(std, bounds)
     if shortfalls:
-        return "insufficient", ("all 12 gyro parameters are excited, but too weakly for a calibration worth having "
-                                f"(the solve refuses it): {accuracy_summary(shortfalls)}")
+        return "insufficient", f"{too_weak_reason(shortfalls)} (magyro solve refuses it too)"
     above, worst = [], []
     for label, values, unit, target in accuracy_rows(std, targets):
         v = float(np.max(values)) if np.all(np.isfinite(values)) else math.inf

@@ -228,20 +228,15 @@ def accuracy_summary(shortfalls: list[tuple[str, float, float, str]], what: str 
     return f"{what} {', '.join(parts)}{more}; {'; '.join(advice[:2])}"
 
 
-ACCURACY_CHECK_BELOW_SNR = 100.0   # 10x the rank's floor; above, every test motion met the default bounds
-
-
-def needs_accuracy_check(analysis: ObservabilityAnalysis) -> bool:
-    """Is the motion weak enough somewhere that its predicted accuracy must be computed (about 0.25 s on a 100 s
-    session)? Below 100 in signal to noise along the weakest direction: a weak third axis of +/-30 deg reached
-    23 (2.1 % predicted scale std, refused), +/-45 deg 68 (0.95 %), +/-60 deg 135; BROAD 238-654, simulations
-    over 1000."""
-    snr = analysis.signal_to_noise
-    return snr is None or not analysis.full_rank or float(np.min(snr)) < ACCURACY_CHECK_BELOW_SNR
-
-
 REFUSAL_BOUND_NOTE = ("this is the refusal bound, Options.max_std or --max-std-*; the accuracy targets, --targets, "
                       "are a separate and stricter notion")
+
+
+def too_weak_reason(shortfalls: list[tuple[str, float, float, str]]) -> str:
+    """Why a motion is refused although it excites every gyro parameter: the words of `magyro observe`'s verdict and
+    of the solve's refusal alike, with the numbers and the motion to add."""
+    return ("all 12 gyro parameters are excited, but too weakly for a calibration worth having: "
+            + accuracy_summary(shortfalls))
 
 
 def accuracy_gate(std, options) -> list[str]:
@@ -250,14 +245,12 @@ def accuracy_gate(std, options) -> list[str]:
     shortfalls = accuracy_shortfalls(std, options.max_std)
     if not shortfalls:
         return []
-    summary = accuracy_summary(shortfalls)
     if not options.force:
         from magyro.errors import ObservabilityError
 
-        raise ObservabilityError(
-            f"the motion excites every gyro parameter, but too weakly for a calibration worth having: {summary} "
-            f"(--force solves anyway; {REFUSAL_BOUND_NOTE})")
-    return [f"solved with --force although the motion is too weak: {summary}"]
+        raise ObservabilityError(f"insufficient excitation: {too_weak_reason(shortfalls)} (magyro observe says the "
+                                 f"same; --force solves anyway; {REFUSAL_BOUND_NOTE})")
+    return [f"solved with --force although the motion is too weak: {accuracy_summary(shortfalls)}"]
 
 
 def unexcited_directions(analysis: ObservabilityAnalysis) -> np.ndarray | None:

@@ -176,7 +176,7 @@ class AccelerometerObservability:
                 out += [f"      {w.in_words}: x{_fmt(w.information_gain)}; {_fmt(w.snr_field)}, {_fmt(w.snr_gravity)}"
                         + ("  RESCUED by gravity" if w.rescued else "") for w in g.weakest]
         if self.advice:
-            out.append("  to calibrate the accelerometer too (magyro solve --accelerometer):")
+            out.append("  to calibrate the accelerometer well (magyro solve calibrates it by default; these poses make it worth having):")
             out += [f"    - {a}" for a in self.advice]
         return out
 

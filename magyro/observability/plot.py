@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from magyro.errors import InputError
+from magyro.text import PLOT_INSTALL
 from magyro.io import write_atomically
 from magyro.observability.report import sphere_cell
 from magyro.observability.gate import AXES, FLOOR_FACTOR
@@ -23,7 +24,7 @@ def require_matplotlib():
         import matplotlib  # noqa: F401
         from matplotlib.figure import Figure
     except ImportError:
-        raise InputError("--plot needs matplotlib, which is not installed: pip install 'magyro[plot]'") from None
+        raise InputError(f"--plot needs matplotlib, which is not installed: {PLOT_INSTALL}") from None
     return Figure
 
 

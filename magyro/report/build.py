@@ -7,6 +7,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from magyro.errors import InputError, MagyroError
+from magyro.text import PLOT_INSTALL
 from magyro.report import sections as S
 
 
@@ -69,8 +70,7 @@ def _require_matplotlib() -> None:
     try:
         import matplotlib  # noqa: F401  (the figures need it; say so before any work)
     except ImportError:
-        raise InputError("magyro report needs matplotlib for its figures, which is not installed: "
-                         "pip install 'magyro[plot]'") from None
+        raise InputError(f"magyro report needs matplotlib for its figures, which is not installed: {PLOT_INSTALL}") from None
 
 
 def build_report(session, cal, *, split_check: bool = True, progress=None, session_path: str = "",

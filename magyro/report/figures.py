@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from magyro.errors import InputError
+from magyro.text import PLOT_INSTALL
 from magyro.report.embed import EmbeddedFigure, embed_png
 
 RAW, CALIBRATED, SPLIT = "#c0392b", "#1f5fa8", "#e08a1e"   # the page's colours for raw, calibrated, split-half
@@ -25,7 +26,7 @@ def new_figure(width_in: float, height_in: float):
     try:
         from matplotlib.figure import Figure
     except ImportError:
-        raise InputError("magyro report needs matplotlib for its figures: pip install 'magyro[plot]'") from None
+        raise InputError(f"magyro report needs matplotlib for its figures, which is not installed: {PLOT_INSTALL}") from None
     return Figure(figsize=(width_in, height_in), layout="constrained")
 
 
@@ -96,7 +97,7 @@ def recording_figure(raw, repaired, check):
 
 
 def calibration_figure(rows):
-    """Each gyro parameter with its one-sigma (and the split-half one when known), in four groups by unit.
+    """Each gyro parameter with its one-sigma (and half the split-half difference when known), in four groups by unit.
 
     `rows`: the report's parameter rows (group, label, value, std, split_std, rest)."""
     groups = [("scale", "scale factor off 1 (ppm)"), ("nonorth", "non-orthogonality (deg)"),
@@ -111,7 +112,7 @@ def calibration_figure(rows):
         split = np.array([np.nan if r.split_std is None else r.split_std for r in mine])
         if np.isfinite(split).any():
             ax.errorbar(x + 0.12, values, yerr=np.nan_to_num(split), fmt="none", ecolor=SPLIT, elinewidth=1.2,
-                        capsize=3, label="± 1σ split-half")
+                        capsize=3, label="± half the split-half difference")
         ax.errorbar(x, values, yerr=[r.std for r in mine], fmt="o", color=CALIBRATED, ms=4, elinewidth=2,
                     capsize=3, label="estimate ± 1σ")
         rest = [(i, r.rest) for i, r in enumerate(mine) if r.rest is not None]

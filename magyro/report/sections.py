@@ -12,9 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from magyro.front.findings import lag_line
 from magyro.report import figures
 from magyro.report.fit_sections import residual_section, split_section  # noqa: F401  (sections 4 and 5)
 from magyro.report.section import FAIR, GOOD, POOR, Section, esc, num, table  # noqa: F401  (esc: public)
+from magyro.result.parts import solver_outcome, solver_summary
 from magyro.text import significant
 
 # the calibration section judges each one-sigma against the accuracy targets (magyro.targets), as observe does
@@ -63,8 +65,7 @@ def recording_section(raw, repaired, check) -> Section:
     details = table(["sensor", "samples", "rate (Hz)", "distinct (Hz)", "jitter (ms)", "span (s)", "held (%)",
                      "gaps", "clock"], rows, "numbers")
     if len(check.lag_s) == 2:
-        details += (f"<p>The magnetometer lags the gyro by {check.lag_s[0] * 1e3:.1f} ms at the start and "
-                    f"{check.lag_s[1] * 1e3:.1f} ms at the end.</p>")
+        details += f"<p>{esc(lag_line(check.lag_s).capitalize())}.</p>"
     if check.findings:
         items = []
         for f in check.findings:
@@ -146,9 +147,9 @@ def parameter_rows(cal, check=None) -> list[ParameterRow]:
 
 
 def accelerometer_rows(acc) -> list[ParameterRow]:
-    """The accelerometer's parameters (`magyro solve --accelerometer`) in readable units, each with its std: scale
+    """The accelerometer's parameters (solved with the gyro, by default when the session has one) in readable units, each with its std: scale
     factors (K_a's diagonal - 1, ppm), non-orthogonality (above it, as angles), bias (m/s^2) and C_b_a's Euler
-    angles. Not judged against the targets, which are the gyro's."""
+    angles. Judged against the accelerometer's own targets (`Targets.acc_*`)."""
     rows = []
     for i, a in enumerate("xyz"):
         rows.append(ParameterRow("acc_scale", a, f"scale factor {a}", 1e6 * (acc.K_a[i, i] - 1.0),
@@ -166,42 +167,53 @@ def accelerometer_rows(acc) -> list[ParameterRow]:
     return rows
 
 
-def accelerometer_details(acc) -> str:
-    """The accelerometer's table for the calibration section's details (HTML)."""
+def accelerometer_details(acc, targets=None) -> str:
+    """The accelerometer's table for the calibration section's details (HTML), each one-sigma against its target."""
+    from magyro.targets import Targets
+
+    targets = targets or Targets()
     digits = {"ppm": 0, "deg": 3, "m/s²": 4}
-    body = [[r.label, f"{r.value:+.{digits[r.unit]}f}", f"{r.std:.{digits[r.unit]}f}", r.unit]
-            for r in accelerometer_rows(acc)]
-    body.append(["gravity it was calibrated against (given)", f"{acc.g_m_s2:.5f}", "", "m/s²"])
-    return ("<h3>Accelerometer</h3>" + table(["parameter", "estimate", "± 1σ", "unit"], body, "numbers params")
-            + "<p class='small'>Solved in the same least squares (<code>magyro solve --accelerometer</code>) against "
-            "gravity: f_a = K_a y_a + ε_a in the accelerometer's frame a, f_b = C_b_aᵀ f_a in the gyro's. Scale "
+    body = [[r.label, f"{r.value:+.{digits[r.unit]}f}", f"{r.std:.{digits[r.unit]}f}", f"{target_of(r, targets):g}",
+             r.unit] for r in accelerometer_rows(acc)]
+    body.append([f"gravity it was calibrated against ({acc.gravity_source})", f"{acc.g_m_s2:.5f}", "", "", "m/s²"])
+    return ("<h3>Accelerometer</h3>" + table(["parameter", "estimate", "± 1σ", "target (1σ)", "unit"], body,
+                                             "numbers params")
+            + "<p class='small'>Solved in the same least squares as the gyro (<code>magyro solve</code> calibrates it by "
+            "default when the session has one) against gravity: f_a = K_a y_a + ε_a in the accelerometer's frame a, f_b = C_b_aᵀ f_a in the gyro's. Scale "
             "factors are K_a's diagonal minus 1 in ppm; non-orthogonality is K_a's off-diagonal as an angle; the "
-            "misalignment is C_b_a (gyro to accelerometer frame) as roll, pitch, yaw. Not judged against the "
-            "targets, which are the gyro's.</p>")
+            "misalignment is C_b_a (gyro to accelerometer frame) as roll, pitch, yaw. Each one-sigma is judged "
+            "against the accelerometer's own targets (<code>acc_*</code> in the <code>[targets]</code> table): "
+            "by default a bias of 0.02 m/s², which tilts gravity's direction by 0.12 deg; 2000 ppm of scale and 0.1 deg of "
+            "non-orthogonality put as much error on an axis at 1 g; 0.1 deg of misalignment is the gyro's own "
+            "target.</p>")
 
 
 def sigma(r: ParameterRow) -> float:
-    """The honest one-sigma of a parameter: the split-half one when it is larger than the reported one."""
-    return max(r.std, r.split_std or 0.0)
+    """The calibration's one-sigma of a parameter, the one judged against the targets. Half the split-half
+    difference (`split_std`) is one difference, one draw of the error: shown beside it, never in its place."""
+    return r.std
 
 
 def target_of(r: ParameterRow, targets) -> float:
+    """The target of a parameter's one-sigma: the gyro's, or the accelerometer's own (`acc_*` groups)."""
     return {"scale": targets.scale_factor_ppm, "nonorth": targets.non_orthogonality_deg,
-            "bias": targets.bias_deg_s, "misalignment": targets.misalignment_deg}[r.group]
+            "bias": targets.bias_deg_s, "misalignment": targets.misalignment_deg,
+            "acc_scale": targets.acc_scale_factor_ppm, "acc_nonorth": targets.acc_non_orthogonality_deg,
+            "acc_bias": targets.acc_bias_m_s2, "acc_misalignment": targets.acc_misalignment_deg}[r.group]
 
 
 def above_targets(rows, targets) -> list[ParameterRow]:
-    """The parameters whose honest one-sigma is above its target, worst (largest ratio) first."""
+    """The parameters whose one-sigma (the calibration's) is above its target, worst (largest ratio) first."""
     return sorted((r for r in rows if not sigma(r) <= target_of(r, targets)),
                   key=lambda r: -sigma(r) / target_of(r, targets))
 
 
 def known_to(r: ParameterRow) -> str:
-    """'scale x is known only to ±4497 ppm (the split-half one-sigma; reported ±668)'."""
-    name = {"scale": "scale", "nonorth": "non-orthogonality", "bias": "bias", "misalignment": "misalignment"}[r.group]
-    split = r.split_std is not None and r.split_std > r.std
-    return (f"{name} {r.axis} is known only to ±{num(sigma(r), 2)} {r.unit}"
-            + (f" (the split-half one-sigma; reported ±{num(r.std, 2)})" if split else ""))
+    """'scale x is known only to ±3038 ppm' (the calibration's one-sigma)."""
+    name = {"scale": "scale", "nonorth": "non-orthogonality", "bias": "bias", "misalignment": "misalignment"}[
+        r.group.removeprefix("acc_")]
+    whose = "the accelerometer's " if r.group.startswith("acc_") else ""
+    return f"{whose}{name} {r.axis} is known only to ±{num(sigma(r), 2)} {r.unit}"
 
 
 def calibration_section(cal, check=None, targets=None) -> Section:
@@ -215,35 +227,37 @@ def calibration_section(cal, check=None, targets=None) -> Section:
     worst_mis = max(by["misalignment"], key=sigma)
     solved = "succeeded" in cal.solver.status.lower() or "acceptable" in cal.solver.status.lower() \
         or cal.solver.status.lower() in ("converged", "ok", "given")
+    acc = cal.accelerometer
+    acc_rows = accelerometer_rows(acc) if acc is not None else []
     above = above_targets(rows, targets)
-    determined = not above
-    split_larger = any(r.split_std is not None and r.split_std > r.std for r in (worst_scale, worst_bias, worst_mis))
+    acc_above = above_targets(acc_rows, targets)   # the accelerometer against its own targets
+    determined = not above and not acc_above
     status = GOOD if (solved and determined and cal.observability.rank == 12) else FAIR if solved else POOR
     scales = ", ".join(f"{r.value:+.0f}" for r in by["scale"])
     biases = ", ".join(f"{r.value:+.3f}" for r in by["bias"])
-    judged = ("every one-sigma within the targets" if determined else
+    judged = ("every one-sigma within the targets" if not above else
               f"{len(above)} of the 12 one-sigma above the targets ({targets.text()})")
-    which = "one-sigma (the larger of the reported and the split-half one)" if split_larger else "one-sigma"
     sentence = (f"The gyro's scale factors are off by {scales} ppm and its bias is {biases} deg/s, {judged}: "
-                f"the largest {which} is {num(sigma(worst_scale), 2)} ppm on scale {worst_scale.axis}, "
+                f"the largest one-sigma is {num(sigma(worst_scale), 2)} ppm on scale {worst_scale.axis}, "
                 f"{num(sigma(worst_bias), 2)} deg/s on bias {worst_bias.axis} and {num(sigma(worst_mis), 2)} deg on "
                 f"misalignment {worst_mis.axis}")
     if cal.rests is not None and cal.rests.seconds > 0:
         sentence += (f", and the {cal.rests.seconds:.1f} s of rest imply a bias within "
                      f"{num(float(np.max(np.abs(cal.rests.estimate_minus_rest_deg_s))), 2)} deg/s of the estimate")
-    acc = cal.accelerometer
     if acc is not None:
-        acc_rows = accelerometer_rows(acc)
+        acc_judged = ("every one-sigma within its own targets" if not acc_above else
+                      f"{len(acc_above)} of its 12 one-sigma above its own targets ({targets.accelerometer_text()})")
         acc_scale = [r for r in acc_rows if r.group == "acc_scale"]
         acc_bias = [r for r in acc_rows if r.group == "acc_bias"]
         sentence += (f"; the accelerometer's scale factors are off by {', '.join(f'{r.value:+.0f}' for r in acc_scale)}"
                      f" ppm and its bias is {', '.join(f'{r.value:+.4f}' for r in acc_bias)} m/s², known to "
                      f"±{num(max(r.std for r in acc_scale), 2)} ppm and ±{num(max(r.std for r in acc_bias), 2)} m/s² "
-                     "at most")
-    sentence += f" ({cal.solver.method} {cal.solver.status}, {cal.solver.iterations} iterations)."
+                     f"at most, {acc_judged}")
+    sentence += (f" ({cal.solver.method} {'converged' if solved else solver_outcome(cal.solver.status)}, "
+                 f"{cal.solver.iterations} iterations).")
     has_split = any(r.split_std is not None for r in rows)
     has_rest = any(r.rest is not None for r in rows)
-    header = ["parameter", "estimate", "± 1σ", *(["± 1σ split-half"] if has_split else []),
+    header = ["parameter", "estimate", "± 1σ", *(["half the split-half difference (one draw, not a σ)"] if has_split else []),
               *(["from the rests"] if has_rest else []), "unit"]
     digits = {"ppm": 0, "deg": 3, "deg/s": 4}
     body = []
@@ -266,18 +280,18 @@ def calibration_section(cal, check=None, targets=None) -> Section:
         mag.append(["gyro noise density", f"{significant(np.rad2deg(cal.noise.gyro_density_rad_s_sqrt_hz))} deg/s/√Hz"])
         mag.append(["magnetometer noise (" + cal.mag_unit + ")", f"{significant(cal.noise.mag_std)}"])
     mag.append(["observability", f"rank {cal.observability.rank} of 12, condition {num(cal.observability.condition)}"])
-    mag.append(["solver", f"{cal.solver.method} {cal.solver.status}, {cal.solver.iterations} iterations, "
-                          f"{cal.solver.seconds:.2f} s"])
+    mag.append(["solver", solver_summary(cal.solver)])
     details += "<h3>Magnetometer and solve</h3>" + table(["", ""], mag, "keyvalue")
     details += ("<p class='small'>Scale factors are K_g's diagonal minus 1 in parts per million; non-orthogonality "
                 "is K_g's off-diagonal as an angle; the misalignment is C_b_m (gyro to magnetometer frame) as roll, "
                 "pitch, yaw. Model: ω = K_g y + ε_b.</p>")
     if acc is not None:
-        details += accelerometer_details(acc)
+        details += accelerometer_details(acc, targets)
     fig = figures.calibration_figure(rows)
+    first = (above or acc_above or [None])[0]
     caveat = ("" if status == GOOD else
-              f"{known_to(above[0])}, above its {target_of(above[0], targets):g} {above[0].unit} target"
-              if not determined else f"the solver ended {cal.solver.status}" if not solved
+              f"{known_to(first)}, above its {target_of(first, targets):g} {first.unit} target"
+              if not determined else f"the solver {solver_outcome(cal.solver.status)}" if not solved
               else f"the motion excites only {cal.observability.rank} of the 12 parameters")
     return Section("calibration", "3. The calibration", status,
                    f"scale σ ≤ {num(sigma(worst_scale), 2)} ppm, bias σ ≤ {num(sigma(worst_bias), 2)} deg/s",

@@ -86,6 +86,15 @@ class AccelerometerCalibration:
                    zero("lever_arm_m", (3,)) if "lever_arm_m" in data else None,
                    read_number(data, "hand_rms_m_s2", where, finite=True) if "hand_rms_m_s2" in data else None)
 
+    @property
+    def gravity_source(self) -> str:
+        """Where `g_m_s2` came from, in words: the standard gravity (the default), or a value given with --gravity."""
+        from magyro.options import STANDARD_GRAVITY_M_S2
+
+        if self.g_m_s2 == STANDARD_GRAVITY_M_S2:
+            return "standard gravity, the default; --gravity gives the local value"
+        return "given with --gravity"
+
     def table_lines(self) -> list[str]:
         lines = ["accelerometer K_a (scale on diagonal, non-orthogonality above), +/- 1 sigma"]
         for i in range(3):
@@ -102,5 +111,5 @@ class AccelerometerCalibration:
         if self.hand_rms_m_s2 is not None:
             lines.append(f"the hand accelerated the device by {self.hand_rms_m_s2:.2f} m/s^2 RMS while turning "
                          f"(refused above {100 * HAND_LIMIT_OF_G:g} % of g, {HAND_LIMIT_OF_G * self.g_m_s2:.2f})")
-        lines.append(f"gravity {self.g_m_s2:.5f} m/s^2 (given)")
+        lines.append(f"gravity {self.g_m_s2:.5f} m/s^2 ({self.gravity_source})")
         return lines

@@ -16,7 +16,7 @@ from magyro.result.consistency_record import SplitCheck
 from magyro.result.fit import FilterFit, LeastSquaresFit, fit_from_dict
 from magyro.result.trajectory import AttitudeTrajectory
 from magyro.text import escaped, unsafe_characters, significant
-from magyro.result.parts import (Excitation, NoiseReport, RestCheck, SolverReport, Std, as_list, read_array, solver_outcome,
+from magyro.result.parts import (Excitation, NoiseReport, RestCheck, SolverReport, Std, as_list, read_array, solver_summary,
                                  read_number, read_section)
 
 SCHEMA = "magyro.calibration/1"
@@ -176,8 +176,9 @@ class Calibration:
             lines.extend(self.accelerometer.table_lines())
         hand = self.solver.details.get("hand_states")
         if hand:
-            beyond = (f", more than a hand reaches ({HAND_REACH_M:g} m): the states took up more than the hand"
-                      if hand["reach_m"] > HAND_REACH_M else "")
+            beyond = (f", more than a hand reaches ({HAND_REACH_M:g} m): the states took up a slow drift besides the "
+                      "hand; the accelerometer's std counts all they took as the hand's error, so this matters only "
+                      "through that std: nothing else to do" if hand["reach_m"] > HAND_REACH_M else "")
             lines.append(f"the hand's velocity solved at every node (prior std {significant(hand['sigma_v_m_s'])} m/s, "
                          f"correlation {hand['tau_s']:g} s; integrated, a position std of {significant(hand['reach_m'])} "
                          f"m{beyond}); --no-hand-states weights the hand as noise instead")
@@ -207,7 +208,7 @@ class Calibration:
         ob = self.observability
         lines.append(f"observability: rank {ob.rank} of 12, condition {significant(ob.condition)}")
         sv = self.solver
-        lines.append(f"solver: {sv.method} {solver_outcome(sv.status)}, {sv.iterations} iterations, {sv.seconds:.2f} s")
+        lines.append(f"solver: {solver_summary(sv)}")
         lines.extend(f"warning: {w}" for w in self.warnings)
         return "\n".join(lines)
 

@@ -120,13 +120,13 @@ def split_warning(report: SplitCheck) -> str | None:
     if report.failed:
         return ("the split-half check could not calibrate each half on its own (" + "; ".join(report.failed)
                 + "): record longer so that each half excites every parameter")
-    if report.rms_z <= MAX_RMS_Z and report.max_abs_z <= MAX_HALF_Z:
+    if report.agrees:
         return None
     row = report.parameters[report.worst]
     return (
         f"the two halves of the recording disagree by {report.rms_z:.1f} sigma RMS over the gyro parameters "
         f"(most on {report.worst}: {row['difference']:.4g}, {report.max_abs_z:.1f} sigma): the model does not "
         f"hold throughout (field not homogeneous along the path, magnetometer not linear, or the sensor changed), "
-        f"so the reported std understates the error by about {report.rms_z:.1f}x; each parameter's split_std "
-        f"in the JSON is the more honest one-sigma ({significant(row['split_std'])} for {report.worst})"
+        f"so the reported std understates the error by about {report.rms_z:.1f}x (half the halves' difference, "
+        f"split_std in the JSON, is {significant(row['split_std'])} for {report.worst}: one difference, not a std)"
     )

@@ -31,6 +31,14 @@ class SplitCheck:
     def compared(self) -> bool:
         return not self.failed and bool(self.parameters)
 
+    @property
+    def agrees(self) -> bool:
+        """Do the halves agree within their std? The one judgement of the halves, `magyro solve --split-check`'s
+        (no warning) and the report's (section 5 good): the RMS of the twelve z within `max_rms_z` and every |z|
+        within `max_half_z`. A parameter's `split_std` (half its one half-difference) is no part of it: one
+        difference is one draw, not a std."""
+        return self.compared and self.rms_z <= self.max_rms_z and self.max_abs_z <= self.max_half_z
+
     def to_dict(self) -> dict:
         out = {"spans_s": [list(s) for s in self.spans_s], "max_half_z": self.max_half_z, "max_rms_z": self.max_rms_z}
         if self.failed:

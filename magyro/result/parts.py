@@ -159,7 +159,7 @@ class Excitation:
 
 SOLVER_OUTCOMES = {   # IPOPT's return status (kept as it is in the JSON) in words, for people
     "Solve_Succeeded": "converged",
-    "Solved_To_Acceptable_Level": "converged to IPOPT's looser 'acceptable' tolerance",
+    "Solved_To_Acceptable_Level": "stopped where chi^2 stopped changing (IPOPT's 'acceptable' level)",
     "Maximum_Iterations_Exceeded": "stopped at its iteration limit",
     "Maximum_CpuTime_Exceeded": "stopped at its time limit",
     "Restoration_Failed": "failed to find a better point (restoration failed)",
@@ -172,6 +172,21 @@ SOLVER_OUTCOMES = {   # IPOPT's return status (kept as it is in the JSON) in wor
 def solver_outcome(status: str) -> str:
     """A solver's return status in words ("converged"); an unknown status as itself, underscores as spaces."""
     return SOLVER_OUTCOMES.get(status, status.replace("_", " "))
+
+
+def solver_summary(solver: "SolverReport") -> str:
+    """How the solve ended, in words that say whether it matters: 'nls converged: ...' (the table, the report).
+
+    The least squares stops IPOPT where chi^2 stops changing (its 'acceptable' level: the gradient test stalls on
+    rounding in chi^2 units, `magyro.nls.problem`), then checks the Gauss-Newton decrement itself and refuses a false
+    stop (exit 1): a status of Solved_To_Acceptable_Level on a calibration is magyro's normal, final stop."""
+    decrement = solver.details.get("gauss_newton_decrement")
+    if solver.status == "Solved_To_Acceptable_Level" and decrement is not None:
+        how = (f"converged: chi^2 stopped changing (magyro's stop for IPOPT) and a further Gauss-Newton step would "
+               f"lower it by only {significant(decrement)}, so the result is final")
+    else:
+        how = solver_outcome(solver.status)
+    return f"{solver.method} {how}, {solver.iterations} iterations, {solver.seconds:.2f} s"
 
 
 @dataclass(frozen=True)

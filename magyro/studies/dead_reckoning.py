@@ -46,6 +46,7 @@ import numpy as np
 
 from magyro import so3
 from magyro.errors import InputError
+from magyro.text import PLOT_INSTALL
 from magyro.front.ellipsoid import calibrated_field
 from magyro.result.calibration import Calibration
 from magyro.session import Session
@@ -350,8 +351,7 @@ def validation_figure(report: ValidationReport):
     try:
         from matplotlib.figure import Figure
     except ImportError:
-        raise InputError("plotting needs matplotlib; install it (pip install 'magyro[plot]' or "
-                         "pip install matplotlib)") from None
+        raise InputError(f"plotting needs matplotlib, which is not installed: {PLOT_INSTALL}") from None
 
     colors = {"raw": "tab:red", "calibrated": "tab:blue"}
     if report.mode == "truth":
