@@ -112,3 +112,18 @@ def significant(value: float, digits: int = 3) -> str:
     if rounded == 0 or 1e-4 <= abs(rounded) < 1e7:
         return np.format_float_positional(rounded, trim="-")
     return f"{rounded:.{digits - 1}e}"
+
+
+ELLIPSIS = "..."
+
+
+def shortened(text: str, width: int) -> str:
+    """`text` on one line, whole when it fits in `width` characters, else cut at the last space that leaves room
+    for ELLIPSIS (mid-word only when a single word is wider than `width`), never mid-word otherwise."""
+    text = " ".join(str(text).split())
+    if len(text) <= width:
+        return text
+    room = max(width - len(ELLIPSIS), 1)
+    cut = text.rfind(" ", 0, room + 1)
+    head = text[:cut] if cut > 0 else text[:room]
+    return head.rstrip(" ,;:(") + ELLIPSIS

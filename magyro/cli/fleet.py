@@ -61,7 +61,7 @@ def batch(
         with counting(0, "devices", enabled=not quiet) as tick:
             def show(done: int, total: int, row: dict) -> None:
                 if tick is not None:
-                    tick(done, f"{row['device_id']}: {row['exit_class']} ({row['message'][:80]})",
+                    tick(done, f"{row['device_id']}: {row['exit_class']} ({row['message']})",
                          alarm=row["exit_code"] != 0, total=total)
             result = run_batch(inputs, outdir, options, limits=chosen, jobs=jobs, scheduler=scheduler, redo=redo,
                                reports=reports, gyro_unit=gyro_unit, mag_unit=mag_unit, progress=show)
