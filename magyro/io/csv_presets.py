@@ -282,19 +282,27 @@ def recognised_preset(sources, delimiter: str | None = None, header_line: int = 
         logger = [p for p in files if _is_sensor_logger_member(p.name)]
         if logger and _all_in_layout(logger, "sensor-logger", delimiter, header_line):
             return "sensor-logger"
-        if logger and any(p.stem.lower() in _SENSOR_LOGGER for p in logger):
-            for p in logger:  # Sensor Logger's file names, one of them not its file: name it and why
-                if p.stem.lower() in _SENSOR_LOGGER:
-                    _sensor_logger_file(p, str(p), delimiter, header_line, explicit=True)
-        phyphox = [p for p in files if _is_phyphox_layout(p, csv_header(p, delimiter, header_line), delimiter,
-                                                          header_line)]
-        return "phyphox" if len(phyphox) >= 2 else None
+        phyphox = [p for p in files if _readable_phyphox(p, delimiter, header_line)]
+        if len(phyphox) >= 2:
+            return "phyphox"
+        for p in logger:  # Sensor Logger's file names, one of them not its file: name it and why
+            if p.stem.lower() in _SENSOR_LOGGER and p not in phyphox:
+                _sensor_logger_file(p, str(p), delimiter, header_line, explicit=True)
+        return None
     if not all(s.is_file() and not is_zip(s) for s in sources):
         return None
     for preset in PRESETS:
         if _all_in_layout(sources, preset, delimiter, header_line):
             return preset
     return None
+
+
+def _readable_phyphox(path: Path, delimiter, header_line) -> bool:
+    """A folder's CSV in phyphox's layout; one that cannot be read is not (a preset that reads it names it)."""
+    try:
+        return _is_phyphox_layout(path, csv_header(path, delimiter, header_line), delimiter, header_line)
+    except InputError:
+        return False
 
 
 def _all_in_layout(files: list[Path], preset: str, delimiter, header_line) -> bool:
