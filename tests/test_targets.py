@@ -189,6 +189,10 @@ def test_old_spellings_are_read_with_a_deprecation_message(tmp_path, run_magyro)
     with pytest.warns(DeprecatedKeyWarning, match="max_std_acc_bias_m_s2 is deprecated, read as target_acc_bias_m_s2"):
         limits = load_limits(old_limits)
     assert limits == Limits(target_bias_deg_s=0.05, target_acc_bias_m_s2=0.1)
+    with pytest.warns(DeprecatedKeyWarning, match="Limits\\(\\): max_std_bias_deg_s is deprecated"):
+        assert Limits(max_std_bias_deg_s=0.05, max_std_acc_bias_m_s2=0.1) == limits   # Python code written before
+    with pytest.warns(DeprecatedKeyWarning, match="Limits.max_std_bias_deg_s is deprecated"):
+        assert limits.max_std_bias_deg_s == 0.05
     with pytest.raises(InputError, match="set the same std targets twice"):   # the old name counts as the new
         load_limits(write(tmp_path / "b.toml", "[limits]\nmax_std_scale_ppm = 9\n[targets]\ntarget_bias_deg_s = 1\n"))
     # on the command line: one plain line on stderr, and the command goes on (here to its own refusal)

@@ -24,6 +24,7 @@ from magyro.batch.row import AXES, EULER, PAIRS, accelerometer_columns, number_o
 from magyro.errors import InputError
 from magyro.io.toml_file import read_toml
 from magyro.front.findings import KINDS
+from magyro.targets import deprecated, renamed_keys
 
 
 # the recording check's finding kinds and the calibration's other warning kinds (magyro.batch.row.warning_kind);
@@ -63,6 +64,12 @@ class Limits:
     def is_empty(self) -> bool:
         return all(getattr(self, f.name) in (None, ()) for f in fields(self))
 
+    def __getattr__(self, name: str):   # only for names that are no field: the old max_std_* ones
+        if name in OLD_KEYS:
+            deprecated(f"Limits.{name} is deprecated: it is Limits.{OLD_KEYS[name]} ({_WHY})")
+            return getattr(self, OLD_KEYS[name])
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
 
 # limit -> (the row's columns it bounds, unit, absolute value?)
 CHECKS = {
@@ -92,9 +99,27 @@ STD_OF_TARGET = {"scale_factor_ppm": "target_scale_ppm", "non_orthogonality_deg"
                  "bias_deg_s": "target_bias_deg_s", "misalignment_deg": "target_misalignment_deg"}
 LIST_KEYS = ("reject_warnings", "reject_findings")
 KEYS = NUMBER_KEYS + LIST_KEYS
+_WHY = ("an acceptance target is target_*, as in [targets] and --target-*; max_std_* names only the solve's refusal "
+        "bound, --max-std-*")
 # before one vocabulary, the std limits were max_std_* here, the name of the solve's refusal bound
 # (--max-std-*): still read as their target_* name, with a deprecation message
 OLD_KEYS = {key.replace("target_", "max_std_", 1): key for key in NUMBER_KEYS if key.startswith("target_")}
+
+
+def _old_names_too(init):
+    """Limits(max_std_scale_ppm=...) of Python code written before: read as target_scale_ppm, with a message
+    (over the new name's value, which dataclasses.replace passes along)."""
+    def __init__(self, *args, **kwargs):
+        for old in [k for k in kwargs if k in OLD_KEYS]:
+            deprecated(f"Limits(): {old} is deprecated, read as {OLD_KEYS[old]} ({_WHY}); rename it")
+            kwargs[OLD_KEYS[old]] = kwargs.pop(old)
+        init(self, *args, **kwargs)
+
+    __init__.__doc__ = init.__doc__
+    return __init__
+
+
+Limits.__init__ = _old_names_too(Limits.__init__)
 
 
 # --------------------------------------------------------------------------- reading
@@ -114,7 +139,7 @@ def load_limits(path) -> Limits:
 def parse_limits(raw: dict, source: str = "limits") -> Limits:
     """The `Limits` of a parsed TOML document ``{"limits": {...}, "targets": {...}}`` (either table may be left
     out, not both); InputError naming `source` and the key."""
-    from magyro.targets import parse_targets, renamed_keys
+    from magyro.targets import parse_targets
 
     extra = sorted(k for k in raw if k not in ("limits", "targets"))
     if extra:
@@ -130,9 +155,7 @@ def parse_limits(raw: dict, source: str = "limits") -> Limits:
     if unknown:
         raise InputError(f"{source} [limits]: unknown key(s) {', '.join(unknown)}; the keys are "
                          f"{', '.join(KEYS)}")
-    table = renamed_keys(table, OLD_KEYS, f"{source} [limits]",
-                         "an acceptance target is target_*, as in [targets] and --target-*; max_std_* names only the "
-                         "solve's refusal bound, --max-std-*")
+    table = renamed_keys(table, OLD_KEYS, f"{source} [limits]", _WHY)
     if "targets" in raw:
         both = sorted(k for k in STD_OF_TARGET.values() if k in table)
         if both:
