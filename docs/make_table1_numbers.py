@@ -195,6 +195,9 @@ def targets_block(record: dict) -> str:
 
     def verdict(key):
         c = t[key]
+        within = "all 12 within" if c["pass"] else f"{12 - len(c['failing'])} of 12 within; off: {', '.join(c['failing'])}"
+        if not c.get("resolvable", True):   # as `montecarlo` says it: neither pass nor fail
+            return f"**not resolvable** with {c['runs']} runs (needs {c['runs_needed']}); {within}"
         return "**pass**, all 12" if c["pass"] else f"**{12 - len(c['failing'])} of 12**; off: {', '.join(c['failing'])}"
 
     def worst(key, value_of):

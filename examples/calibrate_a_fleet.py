@@ -26,7 +26,7 @@ def main() -> None:
     simulate_fleet(load_problem("production-line"), range(4), out / "sessions")
 
     # a bias limit tight enough that some devices of this problem (bias spread 0.3 deg/s) break it
-    limits = Limits(max_abs_bias_deg_s=0.5, max_std_bias_deg_s=0.05, max_std_scale_ppm=3000)
+    limits = Limits(max_abs_bias_deg_s=0.5, target_bias_deg_s=0.05, target_scale_ppm=3000)
     result = run_batch([out / "sessions" / "manifest.csv"], out / "batch", limits=limits, jobs=2)
     print(result.table())
 

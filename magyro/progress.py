@@ -78,13 +78,17 @@ def _plain_line(stream) -> Callable[[str], None]:
     return show
 
 
+LAST_WIDTH = 60   # the bar's last item: shortened at a word with "...", the whole text is printed in the log form
+
+
 @contextlib.contextmanager
 def counting(total: int, label: str = "runs", enabled: bool = True, stream=None):
     """Progress through `total` items (Monte Carlo runs, a batch's devices): yields `tick(done, text, alarm=False,
     total=None)` (`total` when it becomes known only later).
 
-    On a terminal a rich bar on stderr with the last item's text (an `alarm` item, a failure, is also printed
-    as its own line); otherwise one line per item, "LABEL k/N text", so a log keeps them. Disabled: yields None.
+    On a terminal a rich bar on stderr with the last item's text (shortened at a word with "..." to LAST_WIDTH;
+    an `alarm` item, a failure, is also printed whole as its own line); otherwise one line per item, "LABEL k/N
+    text", the text whole, so a log keeps them. Disabled: yields None.
     """
     stream = stream or sys.stderr
     if not enabled:
@@ -104,6 +108,8 @@ def counting(total: int, label: str = "runs", enabled: bool = True, stream=None)
 
         yield plain
         return
+    from magyro.text import shortened
+
     console = Console(file=stream)
     with Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   TextColumn("{task.fields[last]}"), console=console) as bar:
@@ -113,6 +119,6 @@ def counting(total: int, label: str = "runs", enabled: bool = True, stream=None)
             state["total"] = total or state["total"]
             if alarm:
                 console.print(f"{done}/{state['total']} {text}")
-            bar.update(task, completed=done, total=state["total"] or None, last=text[:60])
+            bar.update(task, completed=done, total=state["total"] or None, last=shortened(text, LAST_WIDTH))
 
         yield rich_tick

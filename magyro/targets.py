@@ -24,7 +24,7 @@ Why the default targets are what they are (a hand-held or vehicle device dead-re
 * misalignment 0.1 deg: the gyro's turning expressed in the magnetometer's frame is off by this angle,
   the same size as the non-orthogonality it is confused with.
 
-The accelerometer's own (`acc_*`; read by `report`, which judges a calibration's accelerometer against them):
+The accelerometer's own (`target_acc_*` in a file; read by `report`, which judges a calibration's accelerometer against them):
 a device that uses its accelerometer for gravity's direction (tilt) and, briefly, for motion:
 
 * bias 0.02 m/s^2: 0.02 / 9.81 rad = 0.12 deg of tilt, and 1 m of position in 10 s of integrating it
@@ -78,7 +78,43 @@ class Targets:
                 f"{self.acc_bias_m_s2:g} m/s² bias, {self.acc_misalignment_deg:g} deg misalignment")
 
 
-KEYS = tuple(f.name for f in dataclasses.fields(Targets))
+FIELDS = tuple(f.name for f in dataclasses.fields(Targets))
+# the file's keys, the same names as the --target-* options (--target-scale-ppm: target_scale_ppm) and as a
+# batch limits file's: target_* is an acceptance target, what is asked for; max_std_* names only the solve's
+# refusal bound (--max-std-*, Options.max_std)
+FILE_KEYS = {"target_scale_ppm": "scale_factor_ppm", "target_nonorth_deg": "non_orthogonality_deg",
+             "target_bias_deg_s": "bias_deg_s", "target_misalignment_deg": "misalignment_deg",
+             # the accelerometer's, the names of a batch limits file's target_acc_*
+             "target_acc_scale_ppm": "acc_scale_factor_ppm", "target_acc_nonorth_deg": "acc_non_orthogonality_deg",
+             "target_acc_bias_m_s2": "acc_bias_m_s2", "target_acc_misalignment_deg": "acc_misalignment_deg"}
+KEYS = tuple(FILE_KEYS)
+# the keys before one vocabulary (magyro up to 2026-12): still read, with a deprecation message
+OLD_KEYS = {"scale_factor_ppm": "target_scale_ppm", "non_orthogonality_deg": "target_nonorth_deg",
+            "bias_deg_s": "target_bias_deg_s", "misalignment_deg": "target_misalignment_deg"}
+
+
+class DeprecatedKeyWarning(FutureWarning):
+    """An old spelling of a key that is still read (shown by default; `magyro` prints it as one line)."""
+
+
+def deprecated(message: str) -> None:
+    import warnings
+    warnings.warn(message, DeprecatedKeyWarning, stacklevel=3)
+
+
+def renamed_keys(table: dict, old_keys: dict, where: str, why: str = "") -> dict:
+    """`table` with every old key in `old_keys` renamed to its new key, each with a deprecation message naming
+    both; an old key given beside its new one is refused (two values for one number)."""
+    out = dict(table)
+    for old, new in old_keys.items():
+        if old not in out:
+            continue
+        if new in out:
+            raise InputError(f"{where}: {old} is the old name of {new}, and both are given; keep {new}")
+        deprecated(f"{where}: {old} is deprecated, read as {new} ({why or 'the name of --' + new.replace('_', '-')}); "
+                   f"rename it")
+        out[new] = out.pop(old)
+    return out
 
 
 def targets_from(value) -> Targets:
@@ -104,7 +140,8 @@ def resolve_targets(path=None, scale_factor_ppm: float | None = None, non_orthog
 
 
 def load_targets(path) -> Targets:
-    """The targets of a TOML file with a ``[targets]`` table (keys `KEYS`; a key left out keeps its default);
+    """The targets of a TOML file with a ``[targets]`` table (keys `KEYS`, target_scale_ppm ...: the names of the
+    --target-* options; the old scale_factor_ppm ... read with a `DeprecatedKeyWarning`; a key left out keeps its default);
     InputError with one plain message if unusable. A ``[limits]`` table beside it (magyro batch's) is allowed."""
     from magyro.io.toml_file import read_toml
 
@@ -128,10 +165,14 @@ def parse_targets(table, where: str = "targets") -> Targets:
     """The `Targets` of a parsed ``[targets]`` table; InputError naming `where` and the key."""
     if not isinstance(table, dict):
         raise InputError(f"{where}: targets must be a [targets] table, got {type(table).__name__}")
-    unknown = sorted(k for k in table if k not in KEYS)
+    unknown = sorted(k for k in table if k not in KEYS and k not in OLD_KEYS)
     if unknown:
-        raise InputError(f"{where} [targets]: unknown key(s) {', '.join(unknown)}; the keys are {', '.join(KEYS)}")
-    return Targets(**{k: _positive(table[k], f"{where} [targets] {k}") for k in KEYS if k in table})
+        hint = ("; max_std_* names the solve's refusal bound (--max-std-*), a target is target_*"
+                if any(k.startswith("max_std_") for k in unknown) else "")
+        raise InputError(f"{where} [targets]: unknown key(s) {', '.join(unknown)}; the keys are "
+                         f"{', '.join(KEYS)}{hint}")
+    table = renamed_keys(table, OLD_KEYS, f"{where} [targets]")
+    return Targets(**{FILE_KEYS[k]: _positive(table[k], f"{where} [targets] {k}") for k in KEYS if k in table})
 
 
 def _positive(value, where: str) -> float:
@@ -143,4 +184,4 @@ def _positive(value, where: str) -> float:
     return value
 
 
-__all__ = ["Targets", "KEYS", "load_targets", "parse_targets", "resolve_targets", "targets_from"]
+__all__ = ["Targets", "KEYS", "FILE_KEYS", "DeprecatedKeyWarning", "load_targets", "parse_targets", "resolve_targets", "targets_from"]

@@ -117,3 +117,18 @@ def significant(value: float, digits: int = 3) -> str:
 # how to add matplotlib, for every message that needs it: from PyPI, or from a clone (README's first command
 # installs magyro from its clone, where 'magyro[plot]' would fetch another copy from PyPI)
 PLOT_INSTALL = "pip install 'magyro[plot]', or pip install '.[plot]' in a clone of magyro"
+
+
+ELLIPSIS = "..."
+
+
+def shortened(text: str, width: int) -> str:
+    """`text` on one line, whole when it fits in `width` characters, else cut at the last space that leaves room
+    for ELLIPSIS (mid-word only when a single word is wider than `width`), never mid-word otherwise."""
+    text = " ".join(str(text).split())
+    if len(text) <= width:
+        return text
+    room = max(width - len(ELLIPSIS), 1)
+    cut = text.rfind(" ", 0, room + 1)
+    head = text[:cut] if cut > 0 else text[:room]
+    return head.rstrip(" ,;:(") + ELLIPSIS

@@ -115,16 +115,16 @@ def test_magyro_check_exits_2_naming_g_on_broad_divided_by_g(tmp_path):
     assert "--acc-unit g" in message, message
 
 
-def test_the_x_io_csv_in_g_imported_as_m_s2_exits_2_and_imported_in_g_passes(tmp_path):
-    """A real recording in g (x-io IMU, xioTechnologies/Fusion's sensor_data.csv): imported without --acc-unit (so
-    taken for m/s^2) `magyro check` refuses it naming g; imported with --acc-unit g nothing is said about it."""
+def test_the_x_io_csv_in_g_is_imported_in_g_by_its_header_and_m_s2_given_is_refused(tmp_path):
+    """A real recording in g (x-io IMU, xioTechnologies/Fusion's sensor_data.csv, "Accelerometer X (g)"): imported
+    without --acc-unit its header's g is read, and `magyro check` says nothing about it; --acc-unit m/s^2, which
+    used to import it as m/s^2 for the check to refuse, now contradicts the header and the import says so (exit 2).
+    The check's own refusal of g read as m/s^2 is the test above's, on BROAD 02."""
     source = wild("fusion", "sensor_data.csv")
     units = ["--gyro-unit", "deg/s", "--mag-unit", "uT"]
-    assert run_clean("import", "csv", source, *units, "-o", tmp_path / "as-m-s2.parquet").returncode == 0
-    message = refusal(run_clean("check", tmp_path / "as-m-s2.parquet"), 2)
-    assert "reads gravity as about 0.99" in message and "it is in g, not m/s^2" in message, message
-    assert "--acc-unit g" in message, message
-    assert run_clean("import", "csv", source, *units, "--acc-unit", "g", "-o", tmp_path / "g.parquet").returncode == 0
+    message = refusal(run_clean("import", "csv", source, *units, "--acc-unit", "m/s^2", "-o", tmp_path / "x.parquet"), 2)
+    assert "--acc-unit m/s^2 contradicts the header" in message and "Accelerometer X (g)" in message, message
+    assert run_clean("import", "csv", source, *units, "-o", tmp_path / "g.parquet").returncode == 0
     check = run_clean("check", tmp_path / "g.parquet")
     assert "accelerometer" not in check.stdout, check.stdout
 

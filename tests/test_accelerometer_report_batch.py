@@ -110,8 +110,8 @@ def test_accelerometer_limits_judge_the_row_and_reject_a_device_without_one(cals
     row, plain_row = R.row_from_calibration("d", "d.parquet", cal), R.row_from_calibration("d", "d.parquet", plain)
     limits = parse_limits({"limits": {"max_abs_acc_scale_ppm": 50000, "max_abs_acc_nonorth_deg": 1.0,
                                       "max_abs_acc_bias_m_s2": 0.5, "max_abs_acc_misalignment_deg": 2.0,
-                                      "max_std_acc_scale_ppm": 10000, "max_std_acc_nonorth_deg": 1.0,
-                                      "max_std_acc_bias_m_s2": 0.1, "max_std_acc_misalignment_deg": 1.0}})
+                                      "target_acc_scale_ppm": 10000, "target_acc_nonorth_deg": 1.0,
+                                      "target_acc_bias_m_s2": 0.1, "target_acc_misalignment_deg": 1.0}})
     assert verdict(row, limits) == ("accepted", "")
     worst_bias = max(abs(row[f"acc_bias_m_s2_{a}"]) for a in R.AXES)
     axis = max(R.AXES, key=lambda a: abs(row[f"acc_bias_m_s2_{a}"]))
@@ -119,7 +119,7 @@ def test_accelerometer_limits_judge_the_row_and_reject_a_device_without_one(cals
     decided, reason = verdict(row, tight)
     assert decided == "rejected" and f"|acc_bias_m_s2_{axis}| = {worst_bias:.3f}" in reason and "m/s^2" in reason
     worst_scale_std = max(row[f"std_acc_scale_ppm_{a}"] for a in R.AXES)
-    decided, reason = verdict(row, dataclasses.replace(limits, max_std_acc_scale_ppm=worst_scale_std / 2))
+    decided, reason = verdict(row, dataclasses.replace(limits, target_acc_scale_ppm=worst_scale_std / 2))
     assert decided == "rejected" and "std_acc_scale_ppm_" in reason and "ppm" in reason
     decided, reason = verdict(plain_row, limits)             # measured nothing: rejected, said once
     assert decided == "rejected" and reason.count(";") == 0

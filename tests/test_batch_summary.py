@@ -56,8 +56,8 @@ def good_row(**values) -> dict:
 
 
 LIMITS = Limits(max_abs_scale_ppm=20000, max_abs_nonorth_deg=1.0, max_abs_bias_deg_s=0.5,
-                max_abs_misalignment_deg=3.0, max_std_scale_ppm=2000, max_std_nonorth_deg=0.1,
-                max_std_bias_deg_s=0.05, max_std_misalignment_deg=0.3, max_split_rms_z=3.0)
+                max_abs_misalignment_deg=3.0, target_scale_ppm=2000, target_nonorth_deg=0.1,
+                target_bias_deg_s=0.05, target_misalignment_deg=0.3, max_split_rms_z=3.0)
 
 
 # --------------------------------------------------------------------------- verdicts
@@ -74,10 +74,10 @@ def test_inside_every_limit_is_accepted():
     ("max_abs_nonorth_deg", "nonorth_deg_xz", 1.2, "|nonorth_deg_xz| = 1.2 > 1.0 deg"),
     ("max_abs_bias_deg_s", "bias_deg_s_y", -0.62, "|bias_deg_s_y| = 0.62 > 0.50 deg/s"),
     ("max_abs_misalignment_deg", "misalignment_deg_yaw", 3.5, "|misalignment_deg_yaw| = 3.5 > 3.0 deg"),
-    ("max_std_scale_ppm", "std_scale_ppm_x", 2400.0, "std_scale_ppm_x = 2400 > 2000 ppm"),
-    ("max_std_nonorth_deg", "std_nonorth_deg_yz", 0.15, "std_nonorth_deg_yz = 0.15 > 0.10 deg"),
-    ("max_std_bias_deg_s", "std_bias_deg_s_z", 0.07, "std_bias_deg_s_z = 0.070 > 0.050 deg/s"),
-    ("max_std_misalignment_deg", "std_misalignment_deg_y", 0.45, "std_misalignment_deg_y = 0.45 > 0.30 deg"),
+    ("target_scale_ppm", "std_scale_ppm_x", 2400.0, "std_scale_ppm_x = 2400 > 2000 ppm"),
+    ("target_nonorth_deg", "std_nonorth_deg_yz", 0.15, "std_nonorth_deg_yz = 0.15 > 0.10 deg"),
+    ("target_bias_deg_s", "std_bias_deg_s_z", 0.07, "std_bias_deg_s_z = 0.070 > 0.050 deg/s"),
+    ("target_misalignment_deg", "std_misalignment_deg_y", 0.45, "std_misalignment_deg_y = 0.45 > 0.30 deg"),
     ("max_split_rms_z", "split_rms_z", 4.2, "split_rms_z = 4.2 > 3.0"),
 ])
 def test_each_limit_rejects_with_its_numbers(key, column, value, expected):
@@ -147,21 +147,21 @@ def test_with_verdicts_adds_columns_to_copies():
 def test_example_limits_file_loads():
     from pathlib import Path
     limits = load_limits(Path(__file__).resolve().parent.parent / "docs" / "limits-example.toml")
-    assert limits.max_abs_scale_ppm > 0 and limits.max_std_bias_deg_s > 0
+    assert limits.max_abs_scale_ppm > 0 and limits.target_bias_deg_s > 0
     assert "saturation" in limits.reject_findings
 
 
 def test_load_limits_reads_a_file(tmp_path):
     path = tmp_path / "limits.toml"
-    path.write_text("[limits]\nmax_abs_bias_deg_s = 0.5\nmax_std_scale_ppm = 2000\nreject_warnings = ['any']\n")
-    assert load_limits(path) == Limits(max_abs_bias_deg_s=0.5, max_std_scale_ppm=2000.0, reject_warnings=("any",))
+    path.write_text("[limits]\nmax_abs_bias_deg_s = 0.5\ntarget_scale_ppm = 2000\nreject_warnings = ['any']\n")
+    assert load_limits(path) == Limits(max_abs_bias_deg_s=0.5, target_scale_ppm=2000.0, reject_warnings=("any",))
 
 
 @pytest.mark.parametrize("text, words", [
     ("[limits]\nmax_abs_bias = 0.5\n", ["max_abs_bias", "max_abs_bias_deg_s"]),          # says which keys exist
     ("[limits]\nmax_abs_bias_deg_s = -0.5\n", ["max_abs_bias_deg_s", "negative"]),
-    ("[limits]\nmax_std_scale_ppm = 'a lot'\n", ["max_std_scale_ppm", "number"]),
-    ("[limits]\nmax_std_scale_ppm = true\n", ["max_std_scale_ppm", "number"]),
+    ("[limits]\ntarget_scale_ppm = 'a lot'\n", ["target_scale_ppm", "number"]),
+    ("[limits]\ntarget_scale_ppm = true\n", ["target_scale_ppm", "number"]),
     ("[limits]\nmax_abs_bias_deg_s = nan\n", ["max_abs_bias_deg_s", "finite"]),
     ("[limits]\nreject_warnings = ['saturaton']\n", ["reject_warnings", "saturaton"]),
     ("[limits]\nreject_findings = [1]\n", ["reject_findings"]),

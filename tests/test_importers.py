@@ -289,8 +289,8 @@ def test_import_csv_phone_export_ms_epoch_renamed_columns(tmp_path):
 
 def test_import_csv_guesses_common_headers_and_delimiter(tmp_path):
     path = tmp_path / "phyphox.csv"
-    headers = {"t": "Time (s)", "gx": "Gyroscope x (rad/s)", "gy": "Gyroscope y (rad/s)",
-               "gz": "Gyroscope z (rad/s)", "mx": "Magnetic field x (µT)", "my": "Magnetic field y (µT)",
+    headers = {"t": "Time (ms)", "gx": "Gyroscope x (deg/s)", "gy": "Gyroscope y (deg/s)",
+               "gz": "Gyroscope z (deg/s)", "mx": "Magnetic field x (µT)", "my": "Magnetic field y (µT)",
                "mz": "Magnetic field z (µT)"}
     truth = phone_csv(path, sep=";", headers=headers, epoch_ms=0)
     assert guess_column_map(headers.values()) == headers

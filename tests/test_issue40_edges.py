@@ -237,9 +237,9 @@ def test_the_report_judges_the_accelerometer_against_targets_of_its_own(broad02_
     assert "target (1σ)" in default.details
     assert "by default a bias of 0.02 m/s², which tilts gravity's direction by 0.12 deg" in default.details
     path = tmp_path / "targets.toml"
-    path.write_text("[targets]\nscale_factor_ppm = 1e6\nnon_orthogonality_deg = 90\nbias_deg_s = 10\n"
-                    "misalignment_deg = 90\nacc_scale_factor_ppm = 20000\nacc_non_orthogonality_deg = 2\n"
-                    "acc_bias_m_s2 = 0.2\nacc_misalignment_deg = 2\n", encoding="utf-8")
+    path.write_text("[targets]\ntarget_scale_ppm = 1e6\ntarget_nonorth_deg = 90\ntarget_bias_deg_s = 10\n"
+                    "target_misalignment_deg = 90\ntarget_acc_scale_ppm = 20000\ntarget_acc_nonorth_deg = 2\n"
+                    "target_acc_bias_m_s2 = 0.2\ntarget_acc_misalignment_deg = 2\n", encoding="utf-8")
     loose = calibration_section(cal, None, load_targets(path))
     assert loose.status == "good" and loose.caveat == "", loose.sentence
     assert "every one-sigma within its own targets" in loose.sentence

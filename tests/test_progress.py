@@ -53,3 +53,37 @@ def test_shown_on_a_terminal_only():
 def test_the_command_line_prints_no_progress_when_not_on_a_terminal(tmp_path, run_magyro):
     done = run_magyro("solve", DATA / "simulated-phone-module.parquet", "-o", tmp_path / "c.json")
     assert done.returncode == 0 and done.stderr == "", done.stderr
+
+
+def test_batch_progress_lines_keep_whole_messages(tmp_path):
+    """issue 40: `batch` progress lines cut a device's message mid-sentence (at 80 characters; the terminal's bar at
+    60). Now the log form prints it whole, and the bar shortens it at a word with '...'."""
+    from typer.testing import CliRunner
+
+    from magyro.cli import app
+    from magyro.progress import LAST_WIDTH, counting
+    from magyro.text import shortened
+
+    folder = tmp_path / "devices"
+    folder.mkdir()
+    (folder / "dev1.csv").write_text("t,gx,gy,gz\n0,0,0,0\n0.01,0,0,0\n")
+    res = CliRunner().invoke(app, ["batch", str(folder), "-o", str(tmp_path / "out")])
+    line = next(x for x in res.output.splitlines() if x.startswith("device 1/1 dev1"))
+    assert line.endswith("(optional: ax ay az, qw qx qy qz))"), line   # the message's own end, then the line's
+
+    message = "dev1: unusable input (devices/dev1.csv: missing column(s) mx, my, mz; found columns: t, gx, gy, gz)"
+    short = shortened(message, LAST_WIDTH)
+    assert short.endswith("...") and len(short) <= LAST_WIDTH and message.startswith(short[:-3])
+    assert message[len(short) - 3] in " ,;:(" or message[len(short) - 4] in ",;:("   # cut at a word
+    assert shortened("short enough", LAST_WIDTH) == "short enough"
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    screen = Terminal()
+    with counting(1, "devices", stream=screen) as tick:
+        tick(1, message, alarm=True)
+    import re
+    shown = " ".join(re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", screen.getvalue()).split())
+    assert message in shown and short in shown   # a failure printed whole (wrapped at words), the bar shortened

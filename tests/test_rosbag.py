@@ -42,7 +42,8 @@ def stamps_ns(t_s: np.ndarray) -> np.ndarray:
 def write_bag(path: Path, session, n: int | None = None, ros: int = 2, imu_topics=("/imu",), mag_topics=("/mag",),
               stamp_ns=None, acc_absent: bool = False, mag_as: str = "tesla") -> Path:
     """A bag with the session's first n samples on every topic given (imu_topics may be empty); the magnetometer
-    as MagneticField in tesla, or (`mag_as` "gauss" or "unit") as an older driver's Vector3Stamped."""
+    as MagneticField in tesla (or unit vectors with `mag_as` "unit-tesla"), or (`mag_as` "gauss" or "unit") as an
+    older driver's Vector3Stamped."""
     n = len(session.t_gyro_s) if n is None else n
     assert np.array_equal(session.t_gyro_s, session.t_mag_s) and np.array_equal(session.t_gyro_s, session.t_acc_s)
     stamps = stamps_ns(session.t_gyro_s[:n]) if stamp_ns is None else np.asarray(stamp_ns, dtype=np.int64)
@@ -65,7 +66,7 @@ def write_bag(path: Path, session, n: int | None = None, ros: int = 2, imu_topic
     writer = Writer1(path) if ros == 1 else Writer2(path, version=9)
     with writer:
         imu_conns = [writer.add_connection(t, IMU, typestore=store) for t in imu_topics]
-        mag_type = MAG if mag_as == "tesla" else OLD_MAG
+        mag_type = MAG if mag_as in ("tesla", "unit-tesla") else OLD_MAG
         mag_conns = [writer.add_connection(t, mag_type, typestore=store) for t in mag_topics]
         for k in range(n):
             ns = int(stamps[k])
@@ -79,8 +80,9 @@ def write_bag(path: Path, session, n: int | None = None, ros: int = 2, imu_topic
                 for c in imu_conns:
                     writer.write(c, received, data)
             if mag_conns:
-                if mag_as == "tesla":
-                    mag = MagneticField(header=header(k, ns), magnetic_field=vector(session.mag[k] / 1e6),
+                if mag_as in ("tesla", "unit-tesla"):
+                    b = session.mag[k] / (1e6 if mag_as == "tesla" else np.linalg.norm(session.mag[k]))
+                    mag = MagneticField(header=header(k, ns), magnetic_field=vector(b),
                                         magnetic_field_covariance=zero)
                 else:
                     m = session.mag[k] / (100.0 if mag_as == "gauss" else np.linalg.norm(session.mag[k]))
@@ -268,3 +270,25 @@ def test_an_older_drivers_vector3stamped_magnetometer_is_read(trial, tmp_path, m
     assert s.mag_unit == unit and s.metadata["rosbag_mag_type"] == OLD_MAG
     expected = trial.mag[:n] if mag_as == "gauss" else trial.mag[:n] / np.linalg.norm(trial.mag[:n], axis=1)[:, None]
     np.testing.assert_allclose(s.mag, expected, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("mag_as, ros, mag_type", [("unit", 1, OLD_MAG), ("unit-tesla", 2, MAG)])
+def test_import_refuses_a_normalised_magnetometer_naming_it(trial, tmp_path, mag_as, ros, mag_type):
+    """Before: `magyro import rosbag` wrote a session of unit vectors without a word (a MagneticField of unit vectors
+    even as 1e6 uT), and only solve's exit 2 said why. Now the import is refused, naming the topic and the cause;
+    the Python reader still reads it, labelled "normalised"."""
+    n = 300
+    bag = write_bag(tmp_path / f"normalised-{ros}{'.bag' if ros == 1 else ''}", trial, n, ros=ros, mag_as=mag_as)
+    out = tmp_path / "s.parquet"
+    from typer.testing import CliRunner
+
+    from magyro.cli import app
+
+    result = CliRunner().invoke(app, ["import", "rosbag", str(bag), "-o", str(out)])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 2 and message.startswith("magyro: ") and "Traceback" not in message, message
+    assert "/mag" in message and mag_type in message and "normalised" in message and "|v| is 1.000-1.000" in message
+    assert not out.exists()
+    s = import_rosbag(bag)
+    assert s.mag_unit == "normalised" and s.metadata["mag_unit"] == "normalised"
+    np.testing.assert_allclose(np.linalg.norm(s.mag, axis=1), 1.0, rtol=1e-12)

@@ -17,7 +17,7 @@ from magyro.observability.excitation import judge
 from magyro.observability.report import accuracy_rows
 from magyro.options import Options, StdBounds
 from magyro.report.sections import calibration_section, parameter_rows
-from magyro.targets import KEYS, Targets, load_targets, resolve_targets
+from magyro.targets import FILE_KEYS, KEYS, Targets, load_targets, resolve_targets
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 
@@ -28,7 +28,7 @@ def write(path: Path, text: str) -> Path:
 
 
 def targets_toml(t: Targets) -> str:
-    return "[targets]\n" + "".join(f"{k} = {float(getattr(t, k))!r}\n" for k in KEYS)
+    return "[targets]\n" + "".join(f"{k} = {float(getattr(t, FILE_KEYS[k]))!r}\n" for k in KEYS)
 
 
 @pytest.fixture(scope="module")
@@ -94,23 +94,25 @@ def test_the_refusal_bound_is_a_separate_looser_notion():
     assert b.misalignment_deg >= 10 * t.misalignment_deg and b.nonorthogonality_deg >= 10 * t.non_orthogonality_deg
     assert load_targets(DOCS / "targets-example.toml") == Targets()   # the example shows the defaults
     example = load_limits(DOCS / "limits-example.toml")
-    assert example.max_std_scale_ppm == load_targets(DOCS / "limits-example.toml").scale_factor_ppm
+    assert example.target_scale_ppm == load_targets(DOCS / "limits-example.toml").scale_factor_ppm
 
 
 def test_command_line_numbers_override_the_file(tmp_path):
-    path = write(tmp_path / "t.toml", "[targets]\nscale_factor_ppm = 3000\nbias_deg_s = 0.05\n")
+    path = write(tmp_path / "t.toml", "[targets]\ntarget_scale_ppm = 3000\ntarget_bias_deg_s = 0.05\n")
     assert resolve_targets(path) == Targets(scale_factor_ppm=3000.0, bias_deg_s=0.05)
     assert resolve_targets(path, None, 0.2) == Targets(3000.0, 0.2, 0.05, 0.1)
     assert resolve_targets(None, 500.0) == dataclasses.replace(Targets(), scale_factor_ppm=500.0)
 
 
 @pytest.mark.parametrize("text, says", [
-    ("[target]\nscale_factor_ppm = 1\n", "unknown top-level key(s) target"),
+    ("[target]\ntarget_scale_ppm = 1\n", "unknown top-level key(s) target"),
     ("[limits]\nmax_abs_bias_deg_s = 1\n", "no [targets] table"),
-    ("[targets]\nscale_ppm = 1000\n", "unknown key(s) scale_ppm; the keys are scale_factor_ppm"),
-    ("[targets]\nbias_deg_s = -0.01\n", "bias_deg_s must be a positive finite number"),
-    ("[targets]\nbias_deg_s = 'small'\n", "bias_deg_s must be a number"),
-    ("[targets]\nbias_deg_s = nan\n", "positive finite"),
+    ("[targets]\nscale_ppm = 1000\n", "unknown key(s) scale_ppm; the keys are target_scale_ppm"),
+    ("[targets]\nmax_std_scale_ppm = 1000\n", "max_std_* names the solve's refusal bound"),
+    ("[targets]\ntarget_bias_deg_s = -0.01\n", "target_bias_deg_s must be a positive finite number"),
+    ("[targets]\ntarget_bias_deg_s = 'small'\n", "target_bias_deg_s must be a number"),
+    ("[targets]\ntarget_bias_deg_s = nan\n", "positive finite"),
+    ("[targets]\nbias_deg_s = 0.1\ntarget_bias_deg_s = 0.1\n", "bias_deg_s is the old name of target_bias_deg_s"),
     ("targets = 3\n", "targets must be a [targets] table"),
     ("[targets\n", "not valid TOML"),
 ])
@@ -122,13 +124,13 @@ def test_an_unusable_targets_file_is_one_message(tmp_path, text, says):
 
 
 def test_the_std_limits_are_set_in_one_place(tmp_path):
-    both = write(tmp_path / "l.toml", "[limits]\nmax_std_scale_ppm = 2000\n[targets]\nscale_factor_ppm = 2000\n")
-    with pytest.raises(InputError, match="set the same std limits twice"):
+    both = write(tmp_path / "l.toml", "[limits]\ntarget_scale_ppm = 2000\n[targets]\ntarget_scale_ppm = 2000\n")
+    with pytest.raises(InputError, match="set the same std targets twice"):
         load_limits(both)
     with pytest.raises(InputError, match="both set the std limits"):
-        with_targets(Limits(max_std_scale_ppm=500.0), Targets())
-    same = with_targets(Limits(max_std_scale_ppm=1000.0), Targets())   # the same file given twice: no conflict
-    assert same.max_std_bias_deg_s == Targets().bias_deg_s
+        with_targets(Limits(target_scale_ppm=500.0), Targets())
+    same = with_targets(Limits(target_scale_ppm=1000.0), Targets())   # the same file given twice: no conflict
+    assert same.target_bias_deg_s == Targets().bias_deg_s
 
 
 def test_every_command_takes_the_same_targets_options():
@@ -155,3 +157,54 @@ def test_a_bad_targets_file_is_exit_2_before_any_work(tmp_path):
     session = Path(__file__).resolve().parent.parent / "data" / "broad-02.parquet"
     res = CliRunner().invoke(app, ["observe", str(session), "--targets", str(bad), "-o", str(out), "-q"])
     assert res.exit_code == 2 and "unknown key(s) scale_ppm" in res.output and not out.exists()
+
+
+def test_one_vocabulary_targets_file_options_and_limits_file():
+    """Before: scale_factor_ppm in a targets file, --target-scale-ppm, max_std_scale_ppm in a limits file (where
+    max_std_* meant an acceptance target, and in solve --max-std-* the refusal bound). Now one name each: the
+    acceptance targets target_* everywhere, max_std_* only the refusal bound."""
+    from typer.testing import CliRunner
+
+    from magyro.batch.limits import KEYS as LIMIT_KEYS
+    from magyro.cli import app
+    from magyro.targets import KEYS as TARGET_KEYS
+
+    assert set(TARGET_KEYS) <= set(LIMIT_KEYS)
+    assert not any(k.startswith("max_std_") for k in LIMIT_KEYS + TARGET_KEYS)
+    for command in ("observe", "batch"):
+        text = CliRunner().invoke(app, [command, "--help"], env={"COLUMNS": "300", "NO_COLOR": "1"}).output
+        for key in (k for k in TARGET_KEYS if not k.startswith("target_acc_")):   # the accelerometer's: file only
+            assert f"--{key.replace('_', '-')}" in text, (command, key)
+    solve = CliRunner().invoke(app, ["solve", "--help"], env={"COLUMNS": "300", "NO_COLOR": "1"}).output
+    assert "--max-std-scale-ppm" in solve and "--target-scale-ppm" not in solve
+
+
+def test_old_spellings_are_read_with_a_deprecation_message(tmp_path, run_magyro):
+    from magyro.targets import DeprecatedKeyWarning
+
+    def said(call):
+        """What `call` returns and the deprecation messages it gave (each key its own)."""
+        with pytest.warns(DeprecatedKeyWarning) as record:
+            value = call()
+        return value, " | ".join(str(w.message) for w in record)
+
+    old_targets = write(tmp_path / "t.toml", "[targets]\nscale_factor_ppm = 3000\nnon_orthogonality_deg = 0.2\n")
+    targets, messages = said(lambda: load_targets(old_targets))
+    assert targets == Targets(scale_factor_ppm=3000.0, non_orthogonality_deg=0.2)
+    assert "scale_factor_ppm is deprecated, read as target_scale_ppm" in messages
+    assert "non_orthogonality_deg is deprecated, read as target_nonorth_deg" in messages
+    old_limits = write(tmp_path / "l.toml", "[limits]\nmax_std_bias_deg_s = 0.05\nmax_std_acc_bias_m_s2 = 0.1\n")
+    limits, messages = said(lambda: load_limits(old_limits))
+    assert limits == Limits(target_bias_deg_s=0.05, target_acc_bias_m_s2=0.1)
+    assert "max_std_acc_bias_m_s2 is deprecated, read as target_acc_bias_m_s2" in messages
+    same, messages = said(lambda: Limits(max_std_bias_deg_s=0.05, max_std_acc_bias_m_s2=0.1))  # Python written before
+    assert same == limits and "Limits(): max_std_bias_deg_s is deprecated" in messages
+    value, messages = said(lambda: limits.max_std_bias_deg_s)
+    assert value == 0.05 and "Limits.max_std_bias_deg_s is deprecated" in messages
+    with pytest.raises(InputError, match="set the same std targets twice"), pytest.warns(DeprecatedKeyWarning):
+        load_limits(write(tmp_path / "b.toml", "[limits]\nmax_std_scale_ppm = 9\n[targets]\ntarget_bias_deg_s = 1\n"))
+    # on the command line: one plain line on stderr, and the command goes on (here to its own refusal)
+    res = run_magyro("observe", tmp_path / "absent.parquet", "--targets", old_targets)
+    lines = res.stderr.strip().splitlines()
+    assert lines[0].startswith("magyro: targets file") and "scale_factor_ppm is deprecated" in lines[0], res.stderr
+    assert "Warning" not in res.stderr and "no such file" in lines[-1] and res.returncode == 2

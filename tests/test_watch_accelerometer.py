@@ -104,8 +104,8 @@ def test_stream_lines_carry_the_accelerometer_and_read_back_exactly(broad02):
 # --------------------------------------------------------------------------- without an accelerometer: as before
 
 
-SUMMARY = ("magyro watch: no new data for 0.3 s; 3001 gyro, 3001 magnetometer samples; skipped 1 header, 0 bad, "
-           "0 out-of-order lines; 30.0 s, rank 9/12, coverage 22%; not enough yet: turn about the device's z axis, "
+SUMMARY = ("magyro watch: no new data for 0.3 s; 3001 gyro, 3001 magnetometer samples; "
+           "30.0 s, rank 9/12, coverage 22%; not enough yet: turn about the device's z axis, "
            "+/-90 deg; session written to DIR/out.parquet")
 
 
@@ -139,7 +139,7 @@ def test_the_accelerometer_adds_its_part_and_changes_nothing_else(broad02):
         mine = y.to_json_dict()
         mine.pop("accelerometer", None)
         assert json.dumps(mine, default=str) == json.dumps(x.to_json_dict(), default=str)
-        assert plain_line(y).startswith(plain_line(x).split(", 1 lines skipped")[0].rstrip())
+        assert plain_line(y).startswith(plain_line(x))
 
 
 def test_without_an_accelerometer_watch_saves_none(staged, tmp_path):  # noqa: F811

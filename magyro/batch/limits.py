@@ -11,7 +11,7 @@ only read the rows, so changing them never re-solves a session.
 
 A limit left out (None) is no limit. A quantity that a limit needs but the row does not
 hold (NaN) rejects the device: an acceptance never passes what it did not measure. The
-``max_*_acc_*`` limits bound the accelerometer's parameters (``magyro batch --accelerometer``);
+``max_abs_acc_*`` and ``target_acc_*`` limits bound the accelerometer's parameters (``magyro batch --accelerometer``);
 a device whose calibration has no accelerometer is rejected by them, with one reason.
 """
 from __future__ import annotations
@@ -24,6 +24,7 @@ from magyro.batch.row import AXES, EULER, PAIRS, accelerometer_columns, number_o
 from magyro.errors import InputError
 from magyro.io.toml_file import read_toml
 from magyro.front.findings import KINDS
+from magyro.targets import deprecated, renamed_keys
 
 
 # the recording check's finding kinds and the calibration's other warning kinds (magyro.batch.row.warning_kind);
@@ -43,25 +44,31 @@ class Limits:
     max_abs_nonorth_deg: float | None = None       # |K_g above the diagonal| as angles, deg
     max_abs_bias_deg_s: float | None = None        # |eps_b|, deg/s
     max_abs_misalignment_deg: float | None = None  # |each Euler angle of C_b_m|, deg
-    max_std_scale_ppm: float | None = None
-    max_std_nonorth_deg: float | None = None
-    max_std_bias_deg_s: float | None = None
-    max_std_misalignment_deg: float | None = None
+    target_scale_ppm: float | None = None
+    target_nonorth_deg: float | None = None
+    target_bias_deg_s: float | None = None
+    target_misalignment_deg: float | None = None
     # the accelerometer's (needs `magyro batch --accelerometer`; a device without it is rejected by these)
     max_abs_acc_scale_ppm: float | None = None         # |K_a[i,i] - 1|, ppm
     max_abs_acc_nonorth_deg: float | None = None       # |K_a above the diagonal| as angles, deg
     max_abs_acc_bias_m_s2: float | None = None         # |eps_a|, m/s^2
     max_abs_acc_misalignment_deg: float | None = None  # |each Euler angle of C_b_a|, deg
-    max_std_acc_scale_ppm: float | None = None
-    max_std_acc_nonorth_deg: float | None = None
-    max_std_acc_bias_m_s2: float | None = None
-    max_std_acc_misalignment_deg: float | None = None
+    target_acc_scale_ppm: float | None = None
+    target_acc_nonorth_deg: float | None = None
+    target_acc_bias_m_s2: float | None = None
+    target_acc_misalignment_deg: float | None = None
     max_split_rms_z: float | None = None           # the split-half check's RMS z (needs --split-check)
     reject_warnings: tuple[str, ...] = ()          # warning kinds (row's warning_kinds) that reject; "any": all
     reject_findings: tuple[str, ...] = ()          # recording-check kinds (row's findings), repaired or not
 
     def is_empty(self) -> bool:
         return all(getattr(self, f.name) in (None, ()) for f in fields(self))
+
+    def __getattr__(self, name: str):   # only for names that are no field: the old max_std_* ones
+        if name in OLD_KEYS:
+            deprecated(f"Limits.{name} is deprecated: it is Limits.{OLD_KEYS[name]} ({_WHY})")
+            return getattr(self, OLD_KEYS[name])
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
 
 # limit -> (the row's columns it bounds, unit, absolute value?)
@@ -70,27 +77,49 @@ CHECKS = {
     "max_abs_nonorth_deg": ([f"nonorth_deg_{p}" for *_, p in PAIRS], "deg", True),
     "max_abs_bias_deg_s": ([f"bias_deg_s_{a}" for a in AXES], "deg/s", True),
     "max_abs_misalignment_deg": ([f"misalignment_deg_{e}" for e in EULER], "deg", True),
-    "max_std_scale_ppm": ([f"std_scale_ppm_{a}" for a in AXES], "ppm", False),
-    "max_std_nonorth_deg": ([f"std_nonorth_deg_{p}" for *_, p in PAIRS], "deg", False),
-    "max_std_bias_deg_s": ([f"std_bias_deg_s_{a}" for a in AXES], "deg/s", False),
-    "max_std_misalignment_deg": ([f"std_misalignment_deg_{a}" for a in AXES], "deg", False),
+    "target_scale_ppm": ([f"std_scale_ppm_{a}" for a in AXES], "ppm", False),
+    "target_nonorth_deg": ([f"std_nonorth_deg_{p}" for *_, p in PAIRS], "deg", False),
+    "target_bias_deg_s": ([f"std_bias_deg_s_{a}" for a in AXES], "deg/s", False),
+    "target_misalignment_deg": ([f"std_misalignment_deg_{a}" for a in AXES], "deg", False),
     "max_abs_acc_scale_ppm": ([f"acc_scale_ppm_{a}" for a in AXES], "ppm", True),
     "max_abs_acc_nonorth_deg": ([f"acc_nonorth_deg_{p}" for *_, p in PAIRS], "deg", True),
     "max_abs_acc_bias_m_s2": ([f"acc_bias_m_s2_{a}" for a in AXES], "m/s^2", True),
     "max_abs_acc_misalignment_deg": ([f"acc_misalignment_deg_{e}" for e in EULER], "deg", True),
-    "max_std_acc_scale_ppm": ([f"std_acc_scale_ppm_{a}" for a in AXES], "ppm", False),
-    "max_std_acc_nonorth_deg": ([f"std_acc_nonorth_deg_{p}" for *_, p in PAIRS], "deg", False),
-    "max_std_acc_bias_m_s2": ([f"std_acc_bias_m_s2_{a}" for a in AXES], "m/s^2", False),
-    "max_std_acc_misalignment_deg": ([f"std_acc_misalignment_deg_{a}" for a in AXES], "deg", False),
+    "target_acc_scale_ppm": ([f"std_acc_scale_ppm_{a}" for a in AXES], "ppm", False),
+    "target_acc_nonorth_deg": ([f"std_acc_nonorth_deg_{p}" for *_, p in PAIRS], "deg", False),
+    "target_acc_bias_m_s2": ([f"std_acc_bias_m_s2_{a}" for a in AXES], "m/s^2", False),
+    "target_acc_misalignment_deg": ([f"std_acc_misalignment_deg_{a}" for a in AXES], "deg", False),
     "max_split_rms_z": (["split_rms_z"], "", False),
 }
 ACCELEROMETER_KEYS = tuple(k for k in CHECKS if "_acc_" in k)
 NUMBER_KEYS = tuple(CHECKS)
-# the accuracy targets (magyro.targets.Targets field) that set each std limit
-STD_OF_TARGET = {"scale_factor_ppm": "max_std_scale_ppm", "non_orthogonality_deg": "max_std_nonorth_deg",
-                 "bias_deg_s": "max_std_bias_deg_s", "misalignment_deg": "max_std_misalignment_deg"}
+# the accuracy targets (magyro.targets.Targets field) that set each std limit: a [targets] table's keys are
+# these same names (magyro.targets.FILE_KEYS), as are the --target-* options
+STD_OF_TARGET = {"scale_factor_ppm": "target_scale_ppm", "non_orthogonality_deg": "target_nonorth_deg",
+                 "bias_deg_s": "target_bias_deg_s", "misalignment_deg": "target_misalignment_deg"}
 LIST_KEYS = ("reject_warnings", "reject_findings")
 KEYS = NUMBER_KEYS + LIST_KEYS
+_WHY = ("an acceptance target is target_*, as in [targets] and --target-*; max_std_* names only the solve's refusal "
+        "bound, --max-std-*")
+# before one vocabulary, the std limits were max_std_* here, the name of the solve's refusal bound
+# (--max-std-*): still read as their target_* name, with a deprecation message
+OLD_KEYS = {key.replace("target_", "max_std_", 1): key for key in NUMBER_KEYS if key.startswith("target_")}
+
+
+def _old_names_too(init):
+    """Limits(max_std_scale_ppm=...) of Python code written before: read as target_scale_ppm, with a message
+    (over the new name's value, which dataclasses.replace passes along)."""
+    def __init__(self, *args, **kwargs):
+        for old in [k for k in kwargs if k in OLD_KEYS]:
+            deprecated(f"Limits(): {old} is deprecated, read as {OLD_KEYS[old]} ({_WHY}); rename it")
+            kwargs[OLD_KEYS[old]] = kwargs.pop(old)
+        init(self, *args, **kwargs)
+
+    __init__.__doc__ = init.__doc__
+    return __init__
+
+
+Limits.__init__ = _old_names_too(Limits.__init__)
 
 
 # --------------------------------------------------------------------------- reading
@@ -122,15 +151,16 @@ def parse_limits(raw: dict, source: str = "limits") -> Limits:
     table = raw.get("limits", {})
     if not isinstance(table, dict):
         raise InputError(f"{source}: limits must be a [limits] table, got {type(table).__name__}")
-    unknown = sorted(k for k in table if k not in KEYS)
+    unknown = sorted(k for k in table if k not in KEYS and k not in OLD_KEYS)
     if unknown:
         raise InputError(f"{source} [limits]: unknown key(s) {', '.join(unknown)}; the keys are "
                          f"{', '.join(KEYS)}")
+    table = renamed_keys(table, OLD_KEYS, f"{source} [limits]", _WHY)
     if "targets" in raw:
         both = sorted(k for k in STD_OF_TARGET.values() if k in table)
         if both:
             raise InputError(f"{source}: {', '.join(both)} in [limits] and a [targets] table set the same std "
-                             "limits twice; keep the [targets] table (observe, watch and report read it too)")
+                             "targets twice; keep them in the [targets] table (observe, watch and report read it too)")
         targets = parse_targets(raw["targets"], source)
         table = {**table, **{key: getattr(targets, name) for name, key in STD_OF_TARGET.items()}}
     values: dict = {}

@@ -42,6 +42,9 @@ import math
 import numpy as np
 
 from magyro.errors import MagyroError, one_line
+from magyro.text import shortened
+
+MAX_MESSAGE_CHARS = 2000   # a row's message: whole, unless a runaway one (then cut at a word, with "...")
 
 AXES = ("x", "y", "z")
 PAIRS = ((0, 1, "xy"), (0, 2, "xz"), (1, 2, "yz"))
@@ -93,7 +96,7 @@ def row_from_failure(device_id: str, session: str, exc: BaseException) -> dict:
     row = empty_row(device_id, session)
     code = exit_code_of(exc)
     known = isinstance(exc, MagyroError)
-    message = one_line(exc, limit=500)
+    message = shortened(one_line(exc, limit=None), MAX_MESSAGE_CHARS)
     row.update(status="failed", exit_code=code, exit_class=EXIT_CLASSES.get(code, "solver failed") if known else CRASHED,
                message=message if known else f"{type(exc).__name__}: {message}")
     return row

@@ -51,10 +51,10 @@ FIGURES = [
         ("misalignment (C_b_m Euler)", "deg", [f"misalignment_deg_{e}" for e in EU],
          "max_abs_misalignment_deg")]),
     ("Their one-sigma", [
-        ("std of the scale factor", "ppm", [f"std_scale_ppm_{a}" for a in AX], "max_std_scale_ppm"),
-        ("std of the non-orthogonality", "deg", [f"std_nonorth_deg_{p}" for p in PR], "max_std_nonorth_deg"),
-        ("std of the bias", "deg/s", [f"std_bias_deg_s_{a}" for a in AX], "max_std_bias_deg_s"),
-        ("std of the misalignment", "deg", [f"std_misalignment_deg_{a}" for a in AX], "max_std_misalignment_deg")]),
+        ("std of the scale factor", "ppm", [f"std_scale_ppm_{a}" for a in AX], "target_scale_ppm"),
+        ("std of the non-orthogonality", "deg", [f"std_nonorth_deg_{p}" for p in PR], "target_nonorth_deg"),
+        ("std of the bias", "deg/s", [f"std_bias_deg_s_{a}" for a in AX], "target_bias_deg_s"),
+        ("std of the misalignment", "deg", [f"std_misalignment_deg_{a}" for a in AX], "target_misalignment_deg")]),
     ("The magnetometer and the checks", [
         ("hard iron", "mag unit", [f"hard_iron_{a}" for a in AX], None),
         ("field strength", "mag unit", ["field_strength"], None),
@@ -70,11 +70,11 @@ ACC_FIGURES = [
         ("misalignment (C_b_a Euler)", "deg", [f"acc_misalignment_deg_{e}" for e in EU],
          "max_abs_acc_misalignment_deg")]),
     ("The accelerometer's one-sigma", [
-        ("std of the scale factor", "ppm", [f"std_acc_scale_ppm_{a}" for a in AX], "max_std_acc_scale_ppm"),
-        ("std of the non-orthogonality", "deg", [f"std_acc_nonorth_deg_{p}" for p in PR], "max_std_acc_nonorth_deg"),
-        ("std of the bias", "m/s²", [f"std_acc_bias_m_s2_{a}" for a in AX], "max_std_acc_bias_m_s2"),
+        ("std of the scale factor", "ppm", [f"std_acc_scale_ppm_{a}" for a in AX], "target_acc_scale_ppm"),
+        ("std of the non-orthogonality", "deg", [f"std_acc_nonorth_deg_{p}" for p in PR], "target_acc_nonorth_deg"),
+        ("std of the bias", "m/s²", [f"std_acc_bias_m_s2_{a}" for a in AX], "target_acc_bias_m_s2"),
         ("std of the misalignment", "deg", [f"std_acc_misalignment_deg_{a}" for a in AX],
-         "max_std_acc_misalignment_deg")]),
+         "target_acc_misalignment_deg")]),
 ]
 ACC_COLUMNS = schema.accelerometer_columns()
 # a column that fewer than `min_devices` rows hold (the accelerometer's, in a fleet without one) names no outlier

@@ -31,6 +31,25 @@ from magyro.cli.results import apply_command, export_command, report_command, va
 from magyro.cli.simulation import montecarlo, plan_command, simulate  # noqa: E402
 from magyro.cli.solve import solve  # noqa: E402
 
+def _deprecations_on_one_line() -> None:
+    """An old spelling still read (magyro.targets.DeprecatedKeyWarning) shown as one plain line on stderr."""
+    import warnings
+
+    from magyro.targets import DeprecatedKeyWarning
+
+    shown = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if isinstance(category, type) and issubclass(category, DeprecatedKeyWarning):
+            sys.stderr.write(f"magyro: {message}\n")
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+
+
+_deprecations_on_one_line()
+
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, help="Gyroscope calibration via the magnetometer (Wu & Pei), with the accelerometer in the same least squares when the session has one.")
 
 

@@ -113,9 +113,9 @@ def version_callback(value: bool):
 
 # the accuracy targets (magyro.targets), the same options on observe, watch, report and batch
 TARGETS_OPTION = typer.Option(
-    None, "--targets", help="Accuracy targets: a TOML file with a 'targets' table (docs/targets-example.toml), the same file for "
-    "observe, watch, report and batch. Without: the defaults (1000 ppm, 0.1 deg, 0.01 deg/s, 0.1 deg).")
-TARGET_SCALE_OPTION = typer.Option(None, "--target-scale-ppm", min=0.0, help="One-sigma target of the gyro scale factors (K_g diagonal), ppm (overrides --targets; default 1000).")
+    None, "--targets", help="Accuracy targets: a TOML file with a 'targets' table (docs/targets-example.toml; keys target_scale_ppm ..., "
+    "the names of the --target-* options), the same file for observe, watch, report and batch. Without: the defaults (1000 ppm, 0.1 deg, 0.01 deg/s, 0.1 deg).")
+TARGET_SCALE_OPTION = typer.Option(None, "--target-scale-ppm", min=0.0, help="One-sigma target of the gyro scale factors (K_g diagonal), ppm (the file's target_scale_ppm; overrides --targets; default 1000).")
 TARGET_NONORTH_OPTION = typer.Option(None, "--target-nonorth-deg", min=0.0, help="... of the non-orthogonality (K_g off-diagonal), deg (default 0.1).")
 TARGET_BIAS_OPTION = typer.Option(None, "--target-bias-deg-s", min=0.0, help="... of the gyro bias, deg/s (default 0.01).")
 TARGET_MISALIGNMENT_OPTION = typer.Option(None, "--target-misalignment-deg", min=0.0, help="... of the gyro-magnetometer misalignment, deg (default 0.1).")

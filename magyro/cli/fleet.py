@@ -17,7 +17,7 @@ from magyro.options import Repairs
 def batch(
     inputs: List[str] = typer.Argument(..., metavar="INPUTS...", help="Session files, folders of them, globs (quoted), or a manifest CSV with columns device_id,session."),
     outdir: Path = typer.Option(..., "-o", "--output", help="Folder for the results (created): calibrations/ID.json, rows/, summary.parquet, summary.csv, summary.html."),
-    limits: Optional[Path] = typer.Option(None, "--limits", help="Acceptance limits (TOML, [limits] table; docs/limits-example.toml). Without: every calibrated device is accepted."),
+    limits: Optional[Path] = typer.Option(None, "--limits", help="Acceptance limits (TOML, [limits] table: max_abs_* bounds, target_* one-sigma targets, as in --targets and --target-*; docs/limits-example.toml). Without: every calibrated device is accepted."),
     targets_file: Optional[Path] = TARGETS_OPTION,
     target_scale_ppm: Optional[float] = TARGET_SCALE_OPTION,
     target_nonorth_deg: Optional[float] = TARGET_NONORTH_OPTION,
@@ -28,7 +28,7 @@ def batch(
     redo: bool = typer.Option(False, "--redo", help="Solve every device again, even those already done with the same input and options."),
     reports: bool = typer.Option(False, "--reports", help="Also write each device's HTML report into reports/ (needs magyro[plot]; slower)."),
     split_check: bool = typer.Option(False, "--split-check", help="Also calibrate each half of every recording alone (about 2x the time); gives the split_rms_z column."),
-    accelerometer: Optional[bool] = typer.Option(None, "--accelerometer/--no-accelerometer", help="Calibrate each device's accelerometer (ax ay az, m/s^2) in the same least squares, as magyro solve does: gives the acc_* columns the max_*_acc_* limits bound. Default: for each device whose session has one (left out, saying why, where it cannot be calibrated); --accelerometer insists, --no-accelerometer never."),
+    accelerometer: Optional[bool] = typer.Option(None, "--accelerometer/--no-accelerometer", help="Calibrate each device's accelerometer (ax ay az, m/s^2) in the same least squares, as magyro solve does: gives the acc_* columns the max_abs_acc_* and target_acc_* limits bound. Default: for each device whose session has one (left out, saying why, where it cannot be calibrated); --accelerometer insists, --no-accelerometer never."),
     gravity: float = typer.Option(STANDARD_GRAVITY_M_S2, "--gravity", min=9.7, max=9.9, help="The local gravity in m/s^2 the accelerometers are calibrated against."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the files' metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
@@ -61,7 +61,7 @@ def batch(
         with counting(0, "devices", enabled=not quiet) as tick:
             def show(done: int, total: int, row: dict) -> None:
                 if tick is not None:
-                    tick(done, f"{row['device_id']}: {row['exit_class']} ({row['message'][:80]})",
+                    tick(done, f"{row['device_id']}: {row['exit_class']} ({row['message']})",
                          alarm=row["exit_code"] != 0, total=total)
             result = run_batch(inputs, outdir, options, limits=chosen, jobs=jobs, scheduler=scheduler, redo=redo,
                                reports=reports, gyro_unit=gyro_unit, mag_unit=mag_unit, progress=show)

@@ -27,8 +27,8 @@ from magyro.io.checks import MAX_PLAUSIBLE_STEP_S, MIN_PLAUSIBLE_STEP_S, check_t
 from magyro.io.columns import ACC_COLUMNS, GYRO_COLUMNS, MAG_COLUMNS, OPTIONAL_GROUPS, QUAT_COLUMNS, TIME_COLUMN
 from magyro.io.csv_columns import (SENSOR_GROUPS, groups_in, resolved_column_map, sensor_file_columns)
 from magyro.io.csv_text import checked_read_options, read_csv_table
-from magyro.io.csv_units import (ACC_UNITS, acc_factor, acc_unit_from_gravity, gyro_unit_label, mag_unit_label,
-                                 time_factor, time_unit_label)
+from magyro.io.csv_units import (ACC_UNITS, acc_factor, acc_unit_from_gravity, gyro_unit_label, header_units,
+                                 mag_unit_label, resolved_unit, time_factor, time_unit_label)
 from magyro.session import Session
 
 MAX_ABS_READING = 1e9        # beyond any sensor reading in any unit accepted (nT, counts of a 24-bit ADC, mg)
@@ -36,8 +36,8 @@ MAX_ABS_TIME = 1e19          # beyond an epoch stamp in ns (1.7e18 in 2024)
 ACC_AUTO = "auto"            # the accelerometer's unit told from gravity: g when |a| is near 1, m/s^2 near 9.8
 
 
-def import_csv(path, column_map: dict | None, gyro_unit: str, mag_unit: str,
-               time_unit: str = "s", acc_unit: str = "m/s^2", delimiter: str | None = None,
+def import_csv(path, column_map: dict | None, gyro_unit: str | None = None, mag_unit: str | None = None,
+               time_unit: str | None = None, acc_unit: str | None = None, delimiter: str | None = None,
                skip_rows: int = 0, header_line: int = 0, rate_hz: float | None = None) -> Session:
     """A CSV export with its own column names and units, as a Session.
 
@@ -51,15 +51,23 @@ def import_csv(path, column_map: dict | None, gyro_unit: str, mag_unit: str,
     magnetometer row) are merged; rows holding none of the mapped sensors are dropped; the rows are
     ordered by time. The delimiter (, ; tab |) is detected unless given, and so is a decimal comma when
     the delimiter is not a comma. `header_line` lines come before the header, `skip_rows`
-    lines right after it (a units row) are skipped.
+    lines right after it (a units row) are skipped. A unit left out (None) is read from the header when its
+    columns say it in brackets ("gx (deg/s)", "mag_x [uT]", "Time (ms)"; `magyro.io.csv_units.header_units`),
+    else time is in s and the accelerometer in m/s^2, and the gyro's and magnetometer's are asked for; a unit
+    given that the header contradicts is refused naming both.
     """
     path = Path(path)
     checked_read_options(delimiter, skip_rows, header_line)
+    checked_unit_labels(path, gyro_unit, mag_unit, time_unit, acc_unit)
+    if rate_hz is not None:
+        checked_rate_hz(rate_hz)
+    raw = read_csv_table(path, delimiter, skip_rows, header_line)
+    mapping = resolved_column_map(path, list(raw.columns), column_map, time_needed=rate_hz is None)
+    gyro_unit, mag_unit, time_unit, acc_unit = units_of(path, header_units(path, mapping), gyro_unit, mag_unit,
+                                                        time_unit, acc_unit)
     gyro_unit_c, mag_unit_c = gyro_unit_label(path, gyro_unit), mag_unit_label(path, mag_unit)
     time_scale = 1.0 / checked_rate_hz(rate_hz) if rate_hz is not None else time_factor(path, time_unit)
     acc_scale = acc_factor(path, acc_unit)
-    raw = read_csv_table(path, delimiter, skip_rows, header_line)
-    mapping = resolved_column_map(path, list(raw.columns), column_map, time_needed=rate_hz is None)
     if TIME_COLUMN not in mapping:  # a rate and no time column: the row number counts the samples
         raw = raw.assign(**{"(row number)": np.arange(len(raw), dtype=np.int64)})
         mapping = {TIME_COLUMN: "(row number)", **mapping}
@@ -82,6 +90,29 @@ def import_csv(path, column_map: dict | None, gyro_unit: str, mag_unit: str,
                         else f"{t_first} {time_unit} (t = 0 s)"),
     }
     return session_from_table(table, metadata, str(path), gyro_unit=gyro_unit_c, mag_unit=mag_unit_c)
+
+
+def checked_unit_labels(where, gyro_unit, mag_unit, time_unit, acc_unit) -> None:
+    """The units given (not None) are known labels, checked before any file is read."""
+    for unit, check in ((gyro_unit, gyro_unit_label), (mag_unit, mag_unit_label), (time_unit, time_factor)):
+        if unit is not None:
+            check(where, unit)
+    if acc_unit is not None and acc_unit != ACC_AUTO:
+        acc_factor(where, acc_unit)
+
+
+def units_of(where, said: dict, gyro_unit, mag_unit, time_unit, acc_unit) -> tuple[str, str, str, str]:
+    """The gyro, magnetometer, time and accelerometer units: given, else the header's (`said`), else time in s
+    and the accelerometer in m/s^2; a gyro or magnetometer unit neither given nor in the header is asked for."""
+    gyro_unit = resolved_unit(where, "gyro", gyro_unit, said)
+    mag_unit = resolved_unit(where, "magnetometer", mag_unit, said)
+    missing = [option for option, unit in (("--gyro-unit", gyro_unit), ("--mag-unit", mag_unit)) if unit is None]
+    if missing:
+        raise InputError(f"{where}: give {' and '.join(missing)} (the units of the CSV columns; the header does "
+                         f"not say them, as in \"gx (deg/s)\" or \"mag_x [uT]\"), or --preset sensor-logger|phyphox "
+                         f"for those apps' exports")
+    return (gyro_unit, mag_unit, resolved_unit(where, "time", time_unit, said, "s"),
+            resolved_unit(where, "accelerometer", acc_unit, said, "m/s^2"))
 
 
 def checked_rate_hz(rate_hz) -> float:
@@ -250,8 +281,8 @@ def is_sample_counter(t_raw: np.ndarray, column: str = "") -> bool:
 # --------------------------------------------------------------------------- one CSV per sensor
 
 
-def import_csv_files(paths, column_maps: dict | None, gyro_unit: str, mag_unit: str,
-                     time_unit: str = "s", acc_unit: str = "m/s^2", delimiter: str | None = None,
+def import_csv_files(paths, column_maps: dict | None, gyro_unit: str | None = None, mag_unit: str | None = None,
+                     time_unit: str | None = None, acc_unit: str | None = None, delimiter: str | None = None,
                      skip_rows: int = 0, header_line: int = 0, labels=None,
                      extra_metadata: dict | None = None) -> Session:
     """Several CSV files, one per sensor, merged on time into one Session.
@@ -264,23 +295,33 @@ def import_csv_files(paths, column_maps: dict | None, gyro_unit: str, mag_unit: 
     stamps, an app's experiment clock): t = 0 s is the earliest stamp of all files (int64
     epoch stamps stay exact), and the files' time ranges must overlap. `labels` (default: the
     paths) name the files in messages and metadata. `acc_unit` "auto" tells g from m/s^2 by
-    gravity. The merged table goes through the same checks as a session file.
+    gravity. The merged table goes through the same checks as a session file. Units left out (None) are read
+    from the files' headers as by `import_csv`.
     """
     paths = [Path(p) for p in paths]
     labels = [str(x) for x in (labels or paths)]
     checked_read_options(delimiter, skip_rows, header_line)
+    checked_unit_labels(labels[0], gyro_unit, mag_unit, time_unit, acc_unit)
     column_maps = dict(column_maps or {})
-    gyro_unit_c, mag_unit_c = gyro_unit_label(labels[0], gyro_unit), mag_unit_label(labels[0], mag_unit)
-    time_scale = time_factor(labels[0], time_unit)
-    acc_scale = None if acc_unit == ACC_AUTO else acc_factor(labels[0], acc_unit)
 
-    mappings, tables = [], []
+    mappings, raws, said = [], [], {}
     for i, (path, label) in enumerate(zip(paths, labels)):
         raw = read_csv_table(path, delimiter, skip_rows, header_line)
         mapping = sensor_file_columns(label, list(raw.columns), dict(column_maps.get(i, {})))
         mappings.append(mapping)
-        tables.append(sensor_file_samples(label, raw, mapping, acc_scale))
+        raws.append(raw)
+        for kind, (unit, column) in header_units(label, mapping).items():
+            if kind in said and said[kind][0] != unit:
+                raise InputError(f"the files' {kind} columns say different units: {said[kind][1]!r} says "
+                                 f"{said[kind][0]}, {label}'s {column!r} says {unit}; one {kind} unit for all files")
+            said.setdefault(kind, (unit, f"{label}: {column}"))
     group_files = _one_file_per_sensor(labels, mappings)
+    gyro_unit, mag_unit, time_unit, acc_unit = units_of(" + ".join(labels), said, gyro_unit, mag_unit, time_unit,
+                                                        acc_unit)
+    gyro_unit_c, mag_unit_c = gyro_unit_label(labels[0], gyro_unit), mag_unit_label(labels[0], mag_unit)
+    time_scale = time_factor(labels[0], time_unit)
+    acc_scale = None if acc_unit == ACC_AUTO else acc_factor(labels[0], acc_unit)
+    tables = [sensor_file_samples(label, raw, mapping, acc_scale) for label, raw, mapping in zip(labels, raws, mappings)]
 
     t_origin = _earliest_stamp(tables)
     for table in tables:

@@ -69,6 +69,8 @@ def import_preset(sources, preset: str, skip_rows: int = 0, header_line: int = 0
         units = {"sensor-logger": dict(time_unit="ns"), "phyphox": dict(time_unit="s")}[preset]
         acc_unit = ACC_AUTO if any(f.acc_unit_from_gravity for f in chosen) else "m/s^2"
         notes = [f.note for f in chosen if f.note] + _left_out(preset, files, chosen)
+        if explicit:
+            notes += _accelerometer_beside(preset, sources, chosen, delimiter, header_line)
         extra = {"preset": preset, "source_given": ", ".join(map(str, sources)), "sensor_note": "; ".join(notes)}
         return import_csv_files([f.path for f in chosen], {i: f.columns for i, f in enumerate(chosen)},
                                 gyro_unit="rad/s", mag_unit="uT", acc_unit=acc_unit, delimiter=delimiter,
@@ -99,6 +101,33 @@ def _left_out(preset: str, files: list[tuple[Path, str]], chosen: list) -> list[
     if not any(path.name.lower() == "accelerometer.csv" for path, _ in files):
         return []
     return [ACCELEROMETER_WITHOUT_GRAVITY]
+
+
+def _accelerometer_beside(preset: str, sources: list[Path], chosen: list, delimiter, header_line) -> list[str]:
+    """A note for files given one by one without an accelerometer while the export's accelerometer file lies
+    beside them (the folder form would read it): it was left out, and how to read it too."""
+    if any(f.group == "accelerometer" for f in chosen):
+        return []
+    given = {s.resolve() for s in sources}
+    recognise = {"sensor-logger": _sensor_logger_file, "phyphox": _phyphox_file}[preset]
+    beside = []
+    for folder in dict.fromkeys(s.resolve().parent for s in sources):
+        for path in sorted(folder.glob("*.csv")) + sorted(folder.glob("*.CSV")):
+            if path.resolve() in given or not path.is_file():
+                continue
+            try:
+                found = recognise(path, str(path), delimiter, header_line, False)
+            except (InputError, OSError, UnicodeDecodeError):
+                continue
+            if found is not None and found.group == "accelerometer":
+                beside.append(found)
+    if not beside:
+        return []
+    best = next((f for f in beside if _is_uncalibrated(f)), beside[0])
+    name, folder = best.path.name, best.path.parent
+    return [f"no accelerometer: {name} beside the given files was left out (files given one by one are read "
+            f"alone); give it too (magyro import csv ... {name} --preset {preset}) or the export folder "
+            f"({folder}) to calibrate the accelerometer as well"]
 
 
 ACCELEROMETER_WITHOUT_GRAVITY = ("no accelerometer: Accelerometer.csv left out, it is the phone's acceleration "
@@ -172,8 +201,9 @@ def _sensor_logger_file(path: Path, label: str, delimiter, header_line, explicit
     group, note = kind
     header = csv_header(path, delimiter, header_line)
     if not is_sensor_logger_header(header):
+        found = ", ".join(header) or "(none)"
         raise InputError(f"{label}: not a Sensor Logger {group} export: expected the columns "
-                         f"{', '.join(_SENSOR_LOGGER_COLUMNS)}, found {', '.join(header) or '(none)'}")
+                         f"{', '.join(_SENSOR_LOGGER_COLUMNS)}, found {found[:200]}{'...' if len(found) > 200 else ''}")
     columns = {"t": "time", **dict(zip(_GROUP_COLUMNS[group], ("x", "y", "z")))}
     return SensorFile(path, label, group, columns, note,
                       acc_unit_from_gravity=path.stem.lower() == "accelerometeruncalibrated")
@@ -252,15 +282,27 @@ def recognised_preset(sources, delimiter: str | None = None, header_line: int = 
         logger = [p for p in files if _is_sensor_logger_member(p.name)]
         if logger and _all_in_layout(logger, "sensor-logger", delimiter, header_line):
             return "sensor-logger"
-        phyphox = [p for p in files if _is_phyphox_layout(p, csv_header(p, delimiter, header_line), delimiter,
-                                                          header_line)]
-        return "phyphox" if len(phyphox) >= 2 else None
+        phyphox = [p for p in files if _readable_phyphox(p, delimiter, header_line)]
+        if len(phyphox) >= 2:
+            return "phyphox"
+        for p in logger:  # Sensor Logger's file names, one of them not its file: name it and why
+            if p.stem.lower() in _SENSOR_LOGGER and p not in phyphox:
+                _sensor_logger_file(p, str(p), delimiter, header_line, explicit=True)
+        return None
     if not all(s.is_file() and not is_zip(s) for s in sources):
         return None
     for preset in PRESETS:
         if _all_in_layout(sources, preset, delimiter, header_line):
             return preset
     return None
+
+
+def _readable_phyphox(path: Path, delimiter, header_line) -> bool:
+    """A folder's CSV in phyphox's layout; one that cannot be read is not (a preset that reads it names it)."""
+    try:
+        return _is_phyphox_layout(path, csv_header(path, delimiter, header_line), delimiter, header_line)
+    except InputError:
+        return False
 
 
 def _all_in_layout(files: list[Path], preset: str, delimiter, header_line) -> bool:
@@ -327,7 +369,7 @@ def _recognised_or_refused(sources, preset: str, gyro_unit, mag_unit) -> None:
 
 
 def convert_csv(sources, output, *, preset: str | None = None, column_map_items=None, gyro_unit: str | None = None,
-                mag_unit: str | None = None, time_unit: str = "s", acc_unit: str = "m/s^2",
+                mag_unit: str | None = None, time_unit: str | None = None, acc_unit: str | None = None,
                 delimiter: str | None = None, skip_rows: int = 0, header_line: int = 0,
                 start_s: float | None = None, end_s: float | None = None, rate_hz: float | None = None) -> Session:
     """`magyro import csv`: one CSV, one CSV per sensor, or an app's export (`preset`, or recognised without
@@ -370,10 +412,6 @@ def convert_csv(sources, output, *, preset: str | None = None, column_map_items=
             if folders:
                 raise InputError(f"{', '.join(folders)}: an app's export folder or zip is read with --preset "
                                  f"sensor-logger|phyphox; give other CSV files one by one")
-            missing = [name for name, value in (("--gyro-unit", gyro_unit), ("--mag-unit", mag_unit)) if value is None]
-            if missing:
-                raise InputError(f"give {' and '.join(missing)} (the units of the CSV columns), or --preset "
-                                 f"sensor-logger|phyphox for those apps' exports")
             units = dict(gyro_unit=gyro_unit, mag_unit=mag_unit, time_unit=time_unit, acc_unit=acc_unit,
                          delimiter=delimiter, skip_rows=skip_rows, header_line=header_line)
             if len(sources) == 1:

@@ -44,6 +44,31 @@ def checked_read_options(delimiter: str | None, skip_rows, header_line) -> str |
     return sep
 
 
+def check_readable_csv(path: Path) -> None:
+    """An input CSV that exists, is a regular file with bytes in it and can be opened for reading; else
+    InputError naming it (a folder named *.csv, a file without read permission), never an I/O error that
+    would read as the output's."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path}: a folder, not a CSV file; an input CSV must be a file (replace it with the "
+                         f"app's export of that sensor, or leave it out)")
+    check_file_exists(path)
+    try:
+        with open(path, "rb"):
+            pass
+    except OSError as exc:
+        why = "no permission to read it" if isinstance(exc, PermissionError) else one_line(exc)
+        raise InputError(f"{path}: the input file cannot be read ({why}); make it readable or leave it "
+                         f"out") from None
+
+
+def check_text(path: Path) -> None:
+    """Refuses a file whose first 8 kB hold a NUL byte: binary data (garbage, another format), not CSV text."""
+    with open(path, "rb") as f:
+        if b"\x00" in f.read(8192):
+            raise InputError(f"{path}: binary data, not a CSV text file")
+
+
 def text_lines(path: Path, header_line: int, n_lines: int) -> list[str]:
     """Up to `n_lines` lines of the file from its header on (the `header_line` lines before it left out)."""
     lines = []
@@ -89,7 +114,8 @@ def clean_column_name(name) -> str:
 def csv_header(path, delimiter: str | None = None, header_line: int = 0) -> list[str]:
     """The column names of a CSV file (its header line after `header_line` preamble lines), stripped."""
     path = Path(path)
-    check_file_exists(path)
+    check_readable_csv(path)
+    check_text(path)
     sep = checked_read_options(delimiter, 0, header_line) or sniff_delimiter(path, header_line)
     lines = text_lines(path, header_line, 1)
     if not lines:
@@ -101,10 +127,8 @@ def read_csv_table(path: Path, delimiter: str | None, skip_rows: int = 0, header
     """The file's rows under its header as written (`skip_rows` lines after the header and
     `header_line` lines before it left out); refused when binary, not UTF-8, empty or headless."""
     sep = checked_read_options(delimiter, skip_rows, header_line)
-    check_file_exists(path)
-    with open(path, "rb") as f:
-        if b"\x00" in f.read(8192):
-            raise InputError(f"{path}: binary data, not a CSV text file")
+    check_readable_csv(path)
+    check_text(path)
     sep = sep or sniff_delimiter(path, header_line)
     skipped = [*range(header_line), *range(header_line + 1, header_line + 1 + skip_rows)]
     try:

@@ -7,6 +7,8 @@ rad/s or deg/s. Each refuses an unknown label with the list of known ones.
 """
 from __future__ import annotations
 
+import re
+
 from magyro.errors import InputError
 from magyro.io.checks import canonical_gyro_unit
 from magyro.options import STANDARD_GRAVITY_M_S2
@@ -73,3 +75,73 @@ def acc_unit_from_gravity(median_norm: float) -> str | None:
 
 def time_unit_label(factor: float) -> str:
     return {1.0: "s", 1e-3: "ms", 1e-6: "us", 1e-9: "ns"}[factor]
+
+
+# --------------------------------------------------------------------------- units a header says
+
+# "gx (deg/s)", "mag_x [uT]", "Accelerometer X (g)": the last bracketed text of a column name
+_ANNOTATION = re.compile(r"[\(\[]\s*([^()\[\]]*?)\s*[\)\]]\s*$")
+# the kinds of unit, the session columns each is read from, and the option that gives it
+UNIT_KINDS = {"time": (("t",), "--time-unit"), "gyro": (("gx", "gy", "gz"), "--gyro-unit"),
+              "magnetometer": (("mx", "my", "mz"), "--mag-unit"),
+              "accelerometer": (("ax", "ay", "az"), "--acc-unit")}
+
+
+def canonical_unit(kind: str, unit: str) -> str | None:
+    """The canonical label of `unit` as a unit of `kind` (time, gyro, magnetometer, accelerometer), or None."""
+    key = canonical_key(unit)
+    if kind == "gyro":
+        from magyro.io.checks import GYRO_UNIT_ALIASES
+        return GYRO_UNIT_ALIASES.get(key)
+    if kind == "magnetometer":
+        return MAG_UNITS.get(key)
+    table = TIME_UNITS if kind == "time" else ACC_UNITS
+    folded = {canonical_key(k): k for k in table}
+    if key not in folded:
+        return None
+    factor = table[folded[key]]
+    return time_unit_label(factor) if kind == "time" else next(k for k, v in table.items() if v == factor)
+
+
+def column_annotation(column: str) -> str | None:
+    m = _ANNOTATION.search(str(column))
+    return m.group(1) if m and m.group(1) else None
+
+
+def header_units(where, mapping: dict) -> dict[str, tuple[str, str]]:
+    """{kind: (unit, column)} for every kind whose mapped columns carry a unit in brackets ("gx (deg/s)",
+    "mag_x [uT]"); text in brackets that is no unit of the kind ("X (axis 1)") is not a unit. The axes of
+    one sensor that say different units are refused."""
+    out = {}
+    for kind, (names, _) in UNIT_KINDS.items():
+        said = {}
+        for name in names:
+            if name in mapping:
+                text = column_annotation(mapping[name])
+                unit = canonical_unit(kind, text) if text else None
+                if unit is not None:
+                    said.setdefault(unit, mapping[name])
+        if len(said) > 1:
+            shown = ", ".join(f"{column!r} says {unit}" for unit, column in said.items())
+            raise InputError(f"{where}: the {kind} columns' headers say different units ({shown}); "
+                             f"fix the header or give {UNIT_KINDS[kind][1]} and the header's units agree")
+        if said:
+            ((unit, column),) = said.items()
+            out[kind] = (unit, column)
+    return out
+
+
+def resolved_unit(where, kind: str, given: str | None, said: dict, default: str | None = None) -> str | None:
+    """The unit of `kind`: the option's (`given`, checked against the header), else the header's
+    (`said`, from `header_units`), else `default`. An option the header contradicts is refused naming both."""
+    option = UNIT_KINDS[kind][1]
+    if kind in said:
+        unit, column = said[kind]
+        if given is not None and canonical_key(given) != "auto":
+            mine = canonical_unit(kind, given)
+            if mine is not None and mine != unit:
+                raise InputError(f"{where}: {option} {given} contradicts the header, whose column {column!r} says "
+                                 f"{unit}; leave out {option} (the header's unit is read) or correct the header")
+            return given
+        return unit
+    return given if given is not None else default

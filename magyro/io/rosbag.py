@@ -7,7 +7,8 @@ topic (`magnetic_field`, tesla, imported in uT: value * 1e6) or, from older driv
 `geometry_msgs/msg/Vector3Stamped` topic (`vector`). Vector3Stamped carries no unit: the
 drivers that published it (phidgets_imu, razor_imu_9dof before MagneticField) wrote gauss, or a
 unit vector (the Razor's normalised heading field). Readings whose norm is 1 within 1 % on every
-sample are imported as they are with the unit "normalised"; others as gauss, imported in uT
+sample are read as they are with the unit "normalised" (so is a MagneticField whose |B| is 1 T on every
+sample), and `magyro import rosbag` (`convert_rosbag`) refuses them naming the cause; others as gauss, imported in uT
 (value * 100): the imu_tools Phidgets bag of 2013 reads 0.37-0.38 there, the same samples
 its 2017 MagneticField version gives as 3.7e-5 T. A MagneticField topic is preferred when both
 exist. Each is the topic named, or else the only topic of its type in the bag; several of a
@@ -106,6 +107,10 @@ def import_rosbag(path, imu_topic: str | None = None, mag_topic: str | None = No
         metadata["rosbag_units"] = metadata["rosbag_units"].replace(
             "magnetic_field tesla * 1e6 = uT", "vector (Vector3Stamped) " + (
                 "normalised (every |v| = 1), kept as is" if mag["unit"] == "normalised" else "gauss * 100 = uT"))
+    elif mag["unit"] == "normalised":
+        metadata["mag_unit"] = "normalised"
+        metadata["rosbag_units"] = metadata["rosbag_units"].replace(
+            "magnetic_field tesla * 1e6 = uT", "magnetic_field normalised (every |B| = 1), kept as is")
     if with_acc:
         metadata["acc_unit"] = "m/s^2"
     return session_from_table(table, metadata, str(path), gyro_unit="rad/s", mag_unit=metadata["mag_unit"])
@@ -115,11 +120,16 @@ def convert_rosbag(path, output, imu_topic: str | None = None, mag_topic: str | 
                    compression_level: int | None = None) -> Session:
     """`magyro import rosbag`: `import_rosbag(path, imu_topic, mag_topic)` written to `output` (`write_imported`).
 
-    An `output` that is the bag or cannot be written is refused before the bag is read.
+    An `output` that is the bag or cannot be written is refused before the bag is read; a normalised
+    magnetometer (unit vectors, `check_not_normalised`) is refused before anything is written.
     Returns the written session.
     """
-    return import_to_file([path], output, lambda: import_rosbag(path, imu_topic=imu_topic, mag_topic=mag_topic),
-                          compression_level)
+    def read() -> Session:
+        session = import_rosbag(path, imu_topic=imu_topic, mag_topic=mag_topic)
+        check_not_normalised(path, session)
+        return session
+
+    return import_to_file([path], output, read, compression_level)
 
 
 # --------------------------------------------------------------------------- reading the bag
@@ -197,8 +207,11 @@ def _read(path: Path, reader, topic: str, msgtype: str) -> dict:
         stream["acc"] = np.asarray(acc, dtype=np.float64).reshape(-1, 3)[keep]
         stream["acc"][~stream["acc_present"]] = np.nan  # marked absent: no accelerometer sample
     elif msgtype == MAG_TYPE:
-        stream["mag"] = np.asarray(mag, dtype=np.float64).reshape(-1, 3)[keep] * TESLA_TO_UT
-        stream["unit"] = "uT"
+        field = np.asarray(mag, dtype=np.float64).reshape(-1, 3)[keep]
+        if _is_unit_vectors(field):  # |B| = 1 T on every sample is no field a device reads: a normalised one
+            stream["mag"], stream["unit"] = field, "normalised"
+        else:
+            stream["mag"], stream["unit"] = field * TESLA_TO_UT, "uT"
     else:
         stream["mag"], stream["unit"] = _vector3_field(np.asarray(mag, dtype=np.float64).reshape(-1, 3)[keep])
     return stream
@@ -207,11 +220,32 @@ def _read(path: Path, reader, topic: str, msgtype: str) -> dict:
 def _vector3_field(vector: np.ndarray) -> tuple[np.ndarray, str]:
     """(field, unit) of a Vector3Stamped magnetometer: unit vectors stay as they are ("normalised"), anything
     else is gauss, returned in uT. Rows without a number (a driver's empty messages) stay empty."""
-    norm = np.linalg.norm(vector, axis=1)
-    norm = norm[np.isfinite(norm)]
-    if len(norm) and np.all(np.abs(norm - 1.0) < UNIT_NORM_TOLERANCE):
+    if _is_unit_vectors(vector):
         return vector, "normalised"
     return vector * GAUSS_TO_UT, "uT"
+
+
+def _is_unit_vectors(vector: np.ndarray) -> bool:
+    """Every finite |v| within UNIT_NORM_TOLERANCE of 1: a normalised field (a heading), not a field."""
+    norm = np.linalg.norm(vector, axis=1)
+    norm = norm[np.isfinite(norm)]
+    return bool(len(norm) and np.all(np.abs(norm - 1.0) < UNIT_NORM_TOLERANCE))
+
+
+def check_not_normalised(path, session: Session) -> None:
+    """Refuses (InputError, exit 2) a session whose magnetometer is normalised: unit vectors carry no field
+    strength, so neither the hard iron nor the scale, nor the gyro through them, can be calibrated from it."""
+    if session.mag_unit != "normalised":
+        return
+    m = session.metadata
+    norm = np.linalg.norm(session.mag, axis=1)
+    norm = norm[np.isfinite(norm)]
+    raise InputError(
+        f"{path}: the magnetometer on {m.get('rosbag_mag_topic', 'its topic')} ({m.get('rosbag_mag_type', '')}) is "
+        f"normalised: |v| is {norm.min():.3f}-{norm.max():.3f} on every sample, a unit vector (a heading), not a "
+        f"field in {'tesla' if m.get('rosbag_mag_type') == MAG_TYPE else 'gauss'}; without the field's strength "
+        f"no calibration is possible (solve would refuse it). Record the raw magnetometer (sensor_msgs/"
+        f"MagneticField in tesla, or the driver's unnormalised output) and import that")
 
 
 def _describe(stream: dict) -> str:

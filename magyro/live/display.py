@@ -39,7 +39,7 @@ def predicted_text(status: Status) -> str:
 
 
 def plain_line(status: Status, counts=None) -> str:
-    skipped = f", {counts.skipped} lines skipped" if counts is not None and counts.skipped else ""
+    skipped = f", {counts.skipped_text()}" if counts is not None and counts.skipped else ""
     head = (f"t {status.t_s:7.1f} s  rank {status.rank:2d}/12  coverage {100 * status.coverage:3.0f}%  "
             f"std {predicted_text(status)}")
     tail = status.instruction
@@ -168,8 +168,8 @@ class RichDisplay:
             extra = f"{counts.gyro} gyro, {counts.mag} magnetometer" + (
                 f", {counts.acc} accelerometer" if counts.acc else "") + " samples"
             if counts.skipped:
-                extra += (f"; skipped {counts.header} header, {counts.bad} bad, {counts.out_of_order} out-of-order lines"
-                          + (f" (last bad: {counts.last_bad!r})" if counts.last_bad else ""))
+                extra += (f"; {counts.skipped_text()}"
+                          + (f" (last bad: {counts.last_bad!r})" if counts.bad and counts.last_bad else ""))
             parts.append(Text(extra, style="dim"))
         return Panel(Group(*parts), title=f"magyro watch {self.source}")
 

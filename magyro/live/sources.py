@@ -63,7 +63,14 @@ class LineCounts:
 
     @property
     def skipped(self) -> int:
-        return self.header + self.bad + self.out_of_order
+        """What was left out that a user should hear of: bad lines and out-of-order samples (a header is expected)."""
+        return self.bad + self.out_of_order
+
+    def skipped_text(self) -> str:
+        """"skipped 2 bad lines and 1 out-of-order sample" naming only what was skipped; "" when nothing was."""
+        parts = [f"{n} {what}{'' if n == 1 else 's'}" for n, what in ((self.bad, "bad line"),
+                                                                     (self.out_of_order, "out-of-order sample")) if n]
+        return "skipped " + " and ".join(parts) if parts else ""
 
     def to_dict(self) -> dict:
         out = {"lines": self.lines, "gyro": self.gyro, "mag": self.mag, "header": self.header, "bad": self.bad,

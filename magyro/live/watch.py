@@ -234,7 +234,8 @@ def summary(reason: str, monitor, status, counts, saved: bool, output) -> str:
     acc = f", {counts.acc} accelerometer" if counts.acc else ""
     parts = [f"magyro watch: {reason}; {counts.gyro} gyro, {counts.mag} magnetometer{acc} samples"]
     if counts.skipped:
-        parts.append(f"skipped {counts.header} header, {counts.bad} bad, {counts.out_of_order} out-of-order lines")
+        parts.append(counts.skipped_text() + (f" (last bad: {counts.last_bad!r})" if counts.bad and counts.last_bad
+                                              else ""))
     if status is not None:
         parts.append(f"{status.t_s:.1f} s, rank {status.rank}/12, coverage {100 * status.coverage:.0f}%")
         p = status.predicted
