@@ -335,7 +335,6 @@ def plain_calibration():
         h=[3.5, -12.25, 40.125], mag_unit="uT", field_i=[0.3, 0.0, -0.95])
 
 
-@pytest.mark.numeric
 def test_exports_without_an_accelerometer_are_as_before():
     cal = plain_calibration()
     for fmt, name in PLAIN_EXPORTS.items():
