@@ -74,12 +74,16 @@ NUMERIC_FILES = ("test_accelerometer_apply_export.py", "test_apply_export.py", "
 
 def pytest_collection_modifyitems(config, items):
     """Heaviest files first (a stable sort: the order within a file and among the others is kept); NUMERIC_FILES'
-    tests marked `numeric`."""
+    tests marked `numeric`; a `heavy` test is `slow` too, so that the quick subset `-m "not slow"` (which replaces
+    addopts' -m 'not heavy') leaves it out as well (4 heavy tests were not marked slow). This runs before pytest's
+    -m selection (a conftest's hook before the builtin plugins')."""
     rank = {name: k for k, name in enumerate(HEAVY_FILES)}
     items.sort(key=lambda item: rank.get(Path(str(item.fspath)).name, len(rank)))
     for item in items:
         if Path(str(item.fspath)).name in NUMERIC_FILES:
             item.add_marker(pytest.mark.numeric)
+        if item.get_closest_marker("heavy") and not item.get_closest_marker("slow"):
+            item.add_marker(pytest.mark.slow)
 
 
 # --------------------------------------------------------------------------- what CI checks of a run
