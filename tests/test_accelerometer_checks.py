@@ -19,9 +19,7 @@ from magyro.studies.scenario import load_problem
 from magyro.studies.simulate import simulate
 
 DATA = Path(__file__).resolve().parents[1] / "data"
-WILD = Path(__file__).resolve().parents[2] / "shared" / "data" / "wild"
-if not WILD.is_dir():
-    WILD = Path("/work/shared/data/wild")
+WILD = Path(__file__).resolve().parents[2] / "shared" / "data" / "wild"   # ../shared beside the repository
 G = 9.80665
 
 

@@ -16,9 +16,7 @@ from magyro.options import Options
 from magyro.studies.dead_reckoning import validate
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "data"
-if not SHARED.is_dir():
-    SHARED = Path("/work/shared/data")
+SHARED = ROOT.parent / "shared" / "data"   # ../shared beside the repository
 
 
 def shared(*parts: str) -> Path:

@@ -6,6 +6,7 @@ import hashlib
 import importlib.metadata
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -437,7 +438,7 @@ def test_gyro_noise_takes_its_unit(text, deg_s):
 
 
 def test_gyro_noise_in_rad_s_gives_the_same_result_as_in_deg_s(tmp_path, run_magyro, assert_plain_failure):
-    session = magyro.__file__.replace("magyro/__init__.py", "data/broad-02.parquet")
+    session = Path(__file__).resolve().parents[1] / "data" / "broad-02.parquet"   # the repository's, not the install's
     reports = []
     for value in ("0.0002rad/s/sqrt(Hz)", repr(math.degrees(2e-4))):
         out = tmp_path / f"{len(reports)}.json"

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import sys
 
 import numpy as np
 import pandas as pd
@@ -13,6 +14,7 @@ from magyro.errors import InputError, one_line
 from magyro.io import (MAX_PLAUSIBLE_RATE_RAD_S, MIN_SAMPLES, load_session, session_file, write_session,
                        write_text_atomically)
 from magyro.session import Session
+from unprivileged import run_unprivileged, unprivileged_folder  # noqa: F401 (a fixture)
 
 N_ROWS = 200
 
@@ -273,13 +275,29 @@ def test_undecodable_csv(tmp_path):
     assert "latin.csv" in str(info.value)
 
 
-@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0, reason="root reads anything")
-def test_unreadable_file(tmp_path):
-    path = tmp_path / "locked.csv"
+READ_AS_ANOTHER = """
+import sys
+from magyro.errors import InputError
+from magyro.io import load_session
+try:
+    load_session(sys.argv[1])
+except InputError as error:
+    print("InputError:", error)
+else:
+    print("read")
+"""
+
+
+@pytest.mark.skipif(os.name != "posix", reason="a file of mode 000 is refused only on POSIX systems")
+def test_unreadable_file(unprivileged_folder):
+    """load_session of a file its user may not read (as root, the check runs as the user nobody)."""
+    folder, env = unprivileged_folder
+    path = folder / "locked.csv"
     synthetic_table().to_csv(path, index=False)
     path.chmod(0)
-    with pytest.raises(InputError, match="locked.csv: cannot be read"):
-        load_session(path)
+    done = run_unprivileged([sys.executable, "-c", READ_AS_ANOTHER, str(path)], folder, env)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("InputError:") and "locked.csv: cannot be read" in done.stdout, done.stdout
 
 
 def test_directory_is_not_a_file(tmp_path):

@@ -219,8 +219,6 @@ def test_at_the_start_of_the_motion_two_reference_vectors_reach_full_rank_first(
 
 
 WILD = Path(__file__).resolve().parents[2] / "shared" / "data" / "wild"   # as tests/test_wild_corpus.py finds it
-if not WILD.is_dir():
-    WILD = Path("/work/shared/data/wild")
 
 
 @pytest.mark.skipif(not (WILD / "imu_tools").is_dir(), reason=f"the corpus of real recordings ({WILD}) is absent")

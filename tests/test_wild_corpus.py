@@ -14,9 +14,7 @@ import pytest
 
 from cli_clean import refusal, run_clean
 
-WILD = Path(__file__).resolve().parents[2] / "shared" / "data" / "wild"
-if not WILD.is_dir():
-    WILD = Path("/work/shared/data/wild")
+WILD = Path(__file__).resolve().parents[2] / "shared" / "data" / "wild"   # ../shared beside the repository
 
 pytestmark = pytest.mark.skipif(not WILD.is_dir(), reason=f"the corpus of real recordings ({WILD}) is absent")
 
