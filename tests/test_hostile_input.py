@@ -388,11 +388,21 @@ def test_an_unreadable_input_is_named_as_unreadable(unprivileged_folder):
     refused(["batch", "s.parquet", "-o", "out"], r"s\.parquet: cannot be read: permission denied", folder, env=env)
 
 
-@pytest.mark.xfail(strict=True, reason="typer's Path arguments (CALIB, SESSION, ...) default to click's readable=True, "
-                                       "which answers an unreadable file with its usage error (5 lines, 'Path "
-                                       "'c.json' is not readable') before magyro reads it; seen once this test ran as "
-                                       "a user the file is refused to")
+@pytest.mark.parametrize("command", [["solve", "s.parquet"], ["observe", "s.parquet"], ["check", "s.parquet"]])
+def test_an_unreadable_session_is_named_as_unreadable_not_corrupt(unprivileged_folder, command):
+    """pyarrow's refusal of a file it may not open read 'cannot be read as Parquet ... the file is corrupt or not
+    a Parquet file': the wrong cause."""
+    folder, env = unprivileged_folder
+    shutil.copy(BROAD_02, folder / "s.parquet")
+    os.chmod(folder / "s.parquet", 0)
+    message = refused(command, r"s\.parquet: cannot be read: permission denied", folder, env=env)
+    assert "corrupt" not in message
+
+
 def test_an_unreadable_calibration_is_named_as_unreadable(unprivileged_folder):
+    """typer's Path arguments default to click's readable=True, which answered an unreadable file with its usage
+    error (5 lines, "Path 'c.json' is not readable") before magyro read it: the CLI's paths are readable=False, so
+    magyro's own reader names the file."""
     folder, env = unprivileged_folder
     write_json(folder / "c.json", good_calibration())
     os.chmod(folder / "c.json", 0)

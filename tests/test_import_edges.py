@@ -11,15 +11,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from unprivileged import run_unprivileged, unprivileged_folder  # noqa: F401 (a fixture)
 from typer.testing import CliRunner
 
 from magyro.cli import app
 from magyro.errors import InputError
 from magyro.io import import_csv, load_session
 
-WILD = Path(__file__).resolve().parents[2] / "shared" / "data" / "wild"
-if not WILD.is_dir():
-    WILD = Path("/work/shared/data/wild")
+WILD = Path(__file__).resolve().parents[2] / "shared" / "data" / "wild"   # ../shared beside the repository
 FUSION = WILD / "fusion" / "sensor_data.csv"
 SIMORXB = WILD / "simorxb"
 needs_wild = pytest.mark.skipif(not WILD.is_dir(), reason=f"the corpus of real recordings ({WILD}) is absent")
@@ -152,31 +151,25 @@ def test_unreadable_file_in_a_sensor_logger_folder_is_named(how, tmp_path):
 
 
 @needs_wild
-@pytest.mark.skipif(not shutil.which("setpriv") or sys.platform != "linux", reason="needs setpriv (util-linux)")
-def test_file_without_read_permission_is_an_input_error(tmp_path):
-    """As an unprivileged user (root reads a chmod 000 file): the permission names the input, exit 2."""
-    import os
-    if os.geteuid() != 0:
-        pytest.skip("run as root to switch to an unprivileged user")
-    import tempfile
-    base = Path(tempfile.mkdtemp(prefix="magyro-unreadable-", dir="/tmp"))  # a pytest tmp_path is root's alone
-    try:
-        folder = base / "export"
-        shutil.copytree(SIMORXB, folder)
-        (folder / "GyroscopeUncalibrated.csv").chmod(0)
-        for p in (base, folder):
-            p.chmod(0o777)
-        out = base / "s.parquet"
-        code = ("import sys; from magyro.cli import app; sys.argv = ['magyro', 'import', 'csv', sys.argv[1], '-o', "
-                "sys.argv[2]]; app()")
-        run = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", sys.executable, "-c",
-                              code, str(folder), str(out)], capture_output=True, text=True, timeout=120,
-                             env={**os.environ, "HOME": str(base), "MAGYRO_JIT": "0"})
-        written = out.exists()
-    finally:
-        shutil.rmtree(base, ignore_errors=True)
-    if run.returncode != 0 and "magyro:" not in run.stderr:
-        pytest.skip(f"the unprivileged user cannot run this Python: {run.stderr[-200:]}")
+def test_file_without_read_permission_is_an_input_error(unprivileged_folder):
+    """A file of the export its reader may not read (root reads a chmod 000 file, so as root the import runs as the
+    user nobody): the permission names the input, exit 2, nothing written."""
+    work, env = unprivileged_folder
+    folder = work / "export"
+    shutil.copytree(SIMORXB, folder)
+    (folder / "GyroscopeUncalibrated.csv").chmod(0)
+    for path in (folder, *folder.iterdir()):
+        shutil.chown(path, *owner_of(work))
+    out = work / "s.parquet"
+    code = ("import sys; from magyro.cli import app; sys.argv = ['magyro', 'import', 'csv', sys.argv[1], '-o', "
+            "sys.argv[2]]; app()")
+    run = run_unprivileged([sys.executable, "-c", code, str(folder), str(out)], cwd=work,
+                           env={**env, "MAGYRO_JIT": "0"}, timeout=120)
     assert run.returncode == 2, run.stderr
     assert "GyroscopeUncalibrated.csv: the input file cannot be read (no permission" in run.stderr
-    assert "cannot write output" not in run.stderr and not written
+    assert "cannot write output" not in run.stderr and not out.exists()
+
+
+def owner_of(path: Path) -> tuple[int, int]:
+    stat = path.stat()
+    return stat.st_uid, stat.st_gid

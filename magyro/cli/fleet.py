@@ -16,8 +16,8 @@ from magyro.options import Repairs
 
 def batch(
     inputs: List[str] = typer.Argument(..., metavar="INPUTS...", help="Session files, folders of them, globs (quoted), or a manifest CSV with columns device_id,session."),
-    outdir: Path = typer.Option(..., "-o", "--output", help="Folder for the results (created): calibrations/ID.json, rows/, summary.parquet, summary.csv, summary.html."),
-    limits: Optional[Path] = typer.Option(None, "--limits", help="Acceptance limits (TOML, [limits] table: max_abs_* bounds, target_* one-sigma targets, as in --targets and --target-*; docs/limits-example.toml). Without: every calibrated device is accepted."),
+    outdir: Path = typer.Option(..., "-o", "--output", readable=False, help="Folder for the results (created): calibrations/ID.json, rows/, summary.parquet, summary.csv, summary.html."),
+    limits: Optional[Path] = typer.Option(None, "--limits", readable=False, help="Acceptance limits (TOML, [limits] table: max_abs_* bounds, target_* one-sigma targets, as in --targets and --target-*; docs/limits-example.toml). Without: every calibrated device is accepted."),
     targets_file: Optional[Path] = TARGETS_OPTION,
     target_scale_ppm: Optional[float] = TARGET_SCALE_OPTION,
     target_nonorth_deg: Optional[float] = TARGET_NONORTH_OPTION,

@@ -14,8 +14,8 @@ import_app = typer.Typer(no_args_is_help=True, help="Convert recordings into ses
 @import_app.command("broad", cls=Command)
 @as_written
 def import_broad_command(
-    trial: Path = typer.Argument(..., metavar="TRIAL", help="A BROAD trial file (.mat, or .hdf5/.h5 with h5py installed)."),
-    output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv)."),
+    trial: Path = typer.Argument(..., metavar="TRIAL", readable=False, help="A BROAD trial file (.mat, or .hdf5/.h5 with h5py installed)."),
+    output: Path = typer.Option(..., "-o", "--output", readable=False, help="Session file to write (.parquet or .csv)."),
     movement: bool = typer.Option(False, "--movement", help="Keep only the trial's marked movement phase plus --rest seconds at each end."),
     rest_s: float = typer.Option(3.0, "--rest", min=0.0, help="Seconds of rest kept before and after the movement with --movement."),
     start: Optional[float] = typer.Option(None, "--start", help="Drop samples before this time (s, trial time k/rate)."),
@@ -39,8 +39,8 @@ def import_broad_command(
 @import_app.command("csv", cls=Command)
 @as_written
 def import_csv_command(
-    sources: List[Path] = typer.Argument(..., metavar="SOURCES...", help="CSV export(s): one file with a time column and sensor columns, or one file per sensor (gyro, magnetometer, optional accelerometer) merged on time; with --preset also the app's export folder or zip."),
-    output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv)."),
+    sources: List[Path] = typer.Argument(..., metavar="SOURCES...", readable=False, help="CSV export(s): one file with a time column and sensor columns, or one file per sensor (gyro, magnetometer, optional accelerometer) merged on time; with --preset also the app's export folder or zip."),
+    output: Path = typer.Option(..., "-o", "--output", readable=False, help="Session file to write (.parquet or .csv)."),
     preset: Optional[str] = typer.Option(None, "--preset", help="An app's export: sensor-logger or phyphox (files, columns, units and time known; no --gyro-unit/--mag-unit/--map)."),
     column_map: Optional[List[str]] = typer.Option(None, "--map", "-m", help="NAME=COLUMN for session names t gx gy gz mx my mz (ax ay az, qw qx qy qz), e.g. -m gx=gyroX; with several files NAME=FILE:COLUMN, e.g. -m gx=gyro.csv:x -m t=gyro.csv:time. Repeat, or comma-separate. Unmapped names are guessed from common headers."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="Unit of the gyro columns: rad/s or deg/s (needed without --preset unless the header says it, e.g. \"gx (deg/s)\")."),
@@ -73,8 +73,8 @@ def import_csv_command(
 @import_app.command("ulog", cls=Command)
 @as_written
 def import_ulog_command(
-    log: Path = typer.Argument(..., metavar="LOG", help="A PX4 ULog file (.ulg)."),
-    output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv)."),
+    log: Path = typer.Argument(..., metavar="LOG", readable=False, help="A PX4 ULog file (.ulg)."),
+    output: Path = typer.Option(..., "-o", "--output", readable=False, help="Session file to write (.parquet or .csv)."),
     instance: int = typer.Option(0, "--instance", min=0, help="Topic instance (multi_id), e.g. 1 for the second gyro and magnetometer."),
     topics: Optional[str] = typer.Option(None, "--topics", help="GYRO,MAG topics, e.g. sensor_combined,vehicle_magnetometer (default: sensor_gyro,sensor_mag when logged fast enough, else sensor_combined with vehicle_magnetometer)."),
 ):
@@ -97,8 +97,8 @@ def import_ulog_command(
 @import_app.command("rosbag", cls=Command)
 @as_written
 def import_rosbag_command(
-    bag: Path = typer.Argument(..., metavar="BAG", help="A ROS1 bag file (.bag) or a ROS2 bag folder."),
-    output: Path = typer.Option(..., "-o", "--output", help="Session file to write (.parquet or .csv)."),
+    bag: Path = typer.Argument(..., metavar="BAG", readable=False, help="A ROS1 bag file (.bag) or a ROS2 bag folder."),
+    output: Path = typer.Option(..., "-o", "--output", readable=False, help="Session file to write (.parquet or .csv)."),
     imu_topic: Optional[str] = typer.Option(None, "--imu-topic", help="The sensor_msgs/msg/Imu topic (default: the bag's only one)."),
     mag_topic: Optional[str] = typer.Option(None, "--mag-topic", help="The magnetometer topic: sensor_msgs/msg/MagneticField, or geometry_msgs/msg/Vector3Stamped of older drivers (default: the bag's only one)."),
 ):

@@ -17,8 +17,8 @@ from magyro.cli.common import (TARGET_BIAS_OPTION, TARGET_MISALIGNMENT_OPTION, T
 
 def watch_command(
     source: str = typer.Argument(..., metavar="SOURCE", help="'-' for standard input, a serial device (/dev/ttyUSB0, COM3; or any path with --serial), or a file being written (followed like tail -f). Lines: t,gx,gy,gz,mx,my,mz, or t,gx,gy,gz,,, and t,,,,mx,my,mz for sensors on lines of their own; an accelerometer (m/s^2) as three more fields, t,gx,gy,gz,mx,my,mz,ax,ay,az or t,,,,,,,ax,ay,az."),
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Save what was received as a session file (.parquet or .csv), whatever stops the watch: end of input, --idle, Ctrl-C or SIGTERM."),
-    status: Optional[Path] = typer.Option(None, "--status", help="Write every update as a JSON line here (t_s, rank, coverage, predicted_std per group, enough, ...)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", readable=False, help="Save what was received as a session file (.parquet or .csv), whatever stops the watch: end of input, --idle, Ctrl-C or SIGTERM."),
+    status: Optional[Path] = typer.Option(None, "--status", readable=False, help="Write every update as a JSON line here (t_s, rank, coverage, predicted_std per group, enough, ...)."),
     serial: bool = typer.Option(False, "--serial", help="SOURCE is a serial port (needs pyserial), whatever its name."),
     baud: int = typer.Option(115200, "--baud", min=1, help="Serial port speed."),
     idle: Optional[float] = typer.Option(None, "--idle", min=0.0, help="Stop after this many seconds without new data (default: 10 for a file, never for standard input or a serial port)."),

@@ -13,9 +13,9 @@ from magyro.options import Repairs, StdBounds
 
 
 def observe_command(
-    session: Path = typer.Argument(..., metavar="SESSION", help="Session file (.parquet or .csv, docs/spec.md section 2)."),
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the report JSON here (schema magyro.observability/1)."),
-    plot: Optional[Path] = typer.Option(None, "--plot", help="Write a figure here (.png, .pdf, .svg): field-direction coverage, eigenvalue growth, rates. Needs matplotlib."),
+    session: Path = typer.Argument(..., metavar="SESSION", readable=False, help="Session file (.parquet or .csv, docs/spec.md section 2)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", readable=False, help="Write the report JSON here (schema magyro.observability/1)."),
+    plot: Optional[Path] = typer.Option(None, "--plot", readable=False, help="Write a figure here (.png, .pdf, .svg): field-direction coverage, eigenvalue growth, rates. Needs matplotlib."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
     gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", parser=gyro_noise_density, metavar="DENSITY", help=gyro_noise_help("estimated")),
@@ -61,8 +61,8 @@ def observe_command(
 
 
 def check_command(
-    session: Path = typer.Argument(..., metavar="SESSION", help="Session file (.parquet or .csv, docs/spec.md section 2)."),
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the check as JSON here (schema magyro.recording/1)."),
+    session: Path = typer.Argument(..., metavar="SESSION", readable=False, help="Session file (.parquet or .csv, docs/spec.md section 2)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", readable=False, help="Write the check as JSON here (schema magyro.recording/1)."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
     no_repair: Optional[List[str]] = typer.Option(None, "--no-repair", help=NO_REPAIR_HELP),

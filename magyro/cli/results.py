@@ -11,10 +11,10 @@ from magyro.cli.common import (TARGET_BIAS_OPTION, TARGET_MISALIGNMENT_OPTION, T
 
 
 def validate_command(
-    session: Path = typer.Argument(..., metavar="SESSION", help="Session file (.parquet or .csv); truth columns qw qx qy qz are used when present."),
-    calibration: Path = typer.Argument(..., metavar="CALIB", help="Calibration JSON written by magyro solve."),
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the report JSON here."),
-    plot: Optional[Path] = typer.Option(None, "--plot", help="Write the figure here (.png, .pdf or .svg; needs matplotlib)."),
+    session: Path = typer.Argument(..., metavar="SESSION", readable=False, help="Session file (.parquet or .csv); truth columns qw qx qy qz are used when present."),
+    calibration: Path = typer.Argument(..., metavar="CALIB", readable=False, help="Calibration JSON written by magyro solve."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", readable=False, help="Write the report JSON here."),
+    plot: Optional[Path] = typer.Option(None, "--plot", readable=False, help="Write the figure here (.png, .pdf or .svg; needs matplotlib)."),
     series: bool = typer.Option(False, "--series", help="Put the error (or attitude) time series in the JSON too."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
@@ -36,9 +36,9 @@ def validate_command(
 
 
 def apply_command(
-    session: Path = typer.Argument(..., metavar="SESSION", help="Session file to correct (.parquet or .csv, docs/spec.md section 2)."),
-    calibration: Path = typer.Argument(..., metavar="CALIB", help="Calibration JSON written by magyro solve."),
-    output: Path = typer.Option(..., "-o", "--output", help="Corrected session file to write (.parquet or .csv)."),
+    session: Path = typer.Argument(..., metavar="SESSION", readable=False, help="Session file to correct (.parquet or .csv, docs/spec.md section 2)."),
+    calibration: Path = typer.Argument(..., metavar="CALIB", readable=False, help="Calibration JSON written by magyro solve."),
+    output: Path = typer.Option(..., "-o", "--output", readable=False, help="Corrected session file to write (.parquet or .csv)."),
     frame: str = typer.Option("b", "--frame", help="Frame of the corrected rates (and of the specific force, when the calibration has an accelerometer): b (the gyro's: K_g y + eps_b) or m (the magnetometer's: K y + eps)."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
@@ -60,9 +60,9 @@ def apply_command(
 
 
 def export_command(
-    calibration: Path = typer.Argument(..., metavar="CALIB", help="Calibration JSON written by magyro solve."),
+    calibration: Path = typer.Argument(..., metavar="CALIB", readable=False, help="Calibration JSON written by magyro solve."),
     fmt: str = typer.Option(..., "--format", "-f", help="yaml (a plain, commented YAML file), c (a C99 header with the matrices and apply functions), kalibr (Kalibr's scale-misalignment IMU yaml, exact) or px4 (a QGroundControl .params file: gyro offset only, its cost stated)."),
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write here (default: print to the terminal)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", readable=False, help="Write here (default: print to the terminal)."),
 ):
     """The calibration for other programs: K_g, bias, C_b_m, K, eps, R, h (and K_a, its bias and C_b_a when it has an
     accelerometer) and the model, as YAML (yaml), a C99 header (c), Kalibr's IMU yaml (kalibr) or a PX4 .params file
@@ -80,9 +80,9 @@ def export_command(
 
 
 def report_command(
-    session: Path = typer.Argument(..., metavar="SESSION", help="The session file the calibration was solved from."),
-    calibration: Path = typer.Argument(..., metavar="CALIB", help="The calibration JSON (magyro solve -o)."),
-    output: Path = typer.Option(..., "-o", "--output", help="The HTML page to write (self-contained: opens with no network)."),
+    session: Path = typer.Argument(..., metavar="SESSION", readable=False, help="The session file the calibration was solved from."),
+    calibration: Path = typer.Argument(..., metavar="CALIB", readable=False, help="The calibration JSON (magyro solve -o)."),
+    output: Path = typer.Option(..., "-o", "--output", readable=False, help="The HTML page to write (self-contained: opens with no network)."),
     split_check: bool = typer.Option(True, "--split-check/--no-split-check", help="Compute the split-half check when the calibration has none (two more solves)."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),

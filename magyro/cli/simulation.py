@@ -12,7 +12,7 @@ from magyro.cli.common import gyro_noise_density, gyro_noise_help, fail, run_gua
 
 def simulate(
     problem: str = typer.Argument(..., metavar="PROBLEM", help="Problem file (TOML, describing a simulated scenario), or the name of one shipped in problems/ (e.g. paper-table1)."),
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Session file to write (.parquet or .csv); the truth goes beside it as NAME.truth.json. With --seeds: the folder to write the fleet in (created)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", readable=False, help="Session file to write (.parquet or .csv); the truth goes beside it as NAME.truth.json. With --seeds: the folder to write the fleet in (created)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Noise seed (default 0; the motion is fixed by the problem)."),
     seeds: Optional[str] = typer.Option(None, "--seeds", help="A fleet: one device per seed, e.g. 0-199, 3 or 1,5,9, each with its own sensor errors drawn from the problem's spread section; writes NAME-SEED.parquet, its truth and manifest.csv into the -o folder."),
     stream: bool = typer.Option(False, "--stream", help="Write the recording to standard output as CSV lines (t,gx,gy,gz,,, and t,,,,mx,my,mz, and t,,,,,,,ax,ay,az for a problem with an [accelerometer]), paced in real time, for magyro watch -."),
@@ -52,8 +52,8 @@ def montecarlo(
     jobs: int = typer.Option(1, "--jobs", "-j", min=1, help="Solve in this many processes (one BLAS thread each)."),
     method: str = typer.Option("nls", "--method", help="nls, ekf, or nls,ekf to solve the same sessions with both."),
     seed0: int = typer.Option(0, "--seed0", min=0, help="First noise seed."),
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the table and every run's estimates as JSON (schema magyro.montecarlo/1)."),
-    csv_path: Optional[Path] = typer.Option(None, "--csv", help="Write the table as CSV (one row per method and parameter)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", readable=False, help="Write the table and every run's estimates as JSON (schema magyro.montecarlo/1)."),
+    csv_path: Optional[Path] = typer.Option(None, "--csv", readable=False, help="Write the table as CSV (one row per method and parameter)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Solve on the Dask cluster whose scheduler is at this address (tcp://host:port; default: $MAGYRO_SCHEDULER, else the local pool of --jobs). Needs magyro[dask]."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress and no table on the terminal."),
 ):
@@ -87,7 +87,7 @@ def plan_command(
     mag_noise: Optional[float] = typer.Option(None, "--mag-noise", help="Magnetometer noise std per axis, in the base problem's unit (default: the base problem's)."),
     max_rate: float = typer.Option(200.0, "--max-rate", help="Peak body rate of every turn, deg/s (the comparison motions are brought to it too)."),
     base: str = typer.Option("paper-table1", "--base", help="Problem whose sensors the plan is for (its start pose is the written plan's; the search scores 6 start poses): a file, or the name of one shipped in problems/. With an [accelerometer] (e.g. paper-table1-acc) the plan also holds its six poses and predicts its 12 parameters."),
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the plan as a problem file (TOML, motion kind \"turns\", the predicted std in [plan]); simulate or montecarlo it."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", readable=False, help="Write the plan as a problem file (TOML, motion kind \"turns\", the predicted std in [plan]); simulate or montecarlo it."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress and no table on the terminal."),
 ):
     """A motion to do by hand: a short list of turns about the device's axes, chosen for the smallest predicted

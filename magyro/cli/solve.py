@@ -13,8 +13,8 @@ from magyro.options import Repairs, StdBounds
 
 
 def solve(
-    session: Path = typer.Argument(..., metavar="SESSION", help="Session file (.parquet or .csv, docs/spec.md section 2)."),
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Write the calibration JSON here."),
+    session: Path = typer.Argument(..., metavar="SESSION", readable=False, help="Session file (.parquet or .csv, docs/spec.md section 2)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", readable=False, help="Write the calibration JSON here."),
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
     gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", parser=gyro_noise_density, metavar="DENSITY", help=gyro_noise_help("estimated")),
@@ -33,9 +33,9 @@ def solve(
     max_std_bias_deg_s: float = typer.Option(StdBounds.bias_deg_s, "--max-std-bias-deg-s", min=0.0, help="... of a gyro bias, deg/s."),
     max_std_misalignment_deg: float = typer.Option(StdBounds.misalignment_deg, "--max-std-misalignment-deg", min=0.0, help="... of the misalignment, deg."),
     method: str = typer.Option("nls", "--method", help="nls (the joint least squares) or ekf (the paper's two steps and error-state EKF)."),
-    history: Optional[Path] = typer.Option(None, "--history", help="--method ekf: write K, bias, m^i and their 1-sigma over time (Parquet)."),
-    history_plot: Optional[Path] = typer.Option(None, "--history-plot", help="--method ekf: plot them like the paper's Fig. 3/6/7 (needs magyro[plot])."),
-    trajectory: Optional[Path] = typer.Option(None, "--trajectory", help="--method nls: write the solved attitude at the nodes (quaternion C_m_i and its std) and the calibrated field (Parquet)."),
+    history: Optional[Path] = typer.Option(None, "--history", readable=False, help="--method ekf: write K, bias, m^i and their 1-sigma over time (Parquet)."),
+    history_plot: Optional[Path] = typer.Option(None, "--history-plot", readable=False, help="--method ekf: plot them like the paper's Fig. 3/6/7 (needs magyro[plot])."),
+    trajectory: Optional[Path] = typer.Option(None, "--trajectory", readable=False, help="--method nls: write the solved attitude at the nodes (quaternion C_m_i and its std) and the calibrated field (Parquet)."),
     accelerometer: Optional[bool] = typer.Option(None, "--accelerometer/--no-accelerometer", help="--method nls: calibrate the accelerometer (ax ay az, m/s^2) in the same least squares: K_a, bias, C_b_a against gravity. Default: when the session has one, left out with a warning saying why when it cannot be calibrated; --accelerometer insists (exit 2 without one, exit 3 past its bound), --no-accelerometer never."),
     gravity: float = typer.Option(STANDARD_GRAVITY_M_S2, "--gravity", min=9.7, max=9.9, help="The local gravity in m/s^2 the accelerometer is calibrated against."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No table on the terminal."),

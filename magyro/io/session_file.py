@@ -60,6 +60,7 @@ def check_unit_label(path, unit) -> None:
 def _read_table(path: Path) -> tuple:
     """The file as a table (ColumnTable or DataFrame) plus its key-value metadata (empty for CSV)."""
     check_file_exists(path)
+    check_file_readable(path)
     try:
         if _is_parquet(path):
             table, metadata = _read_parquet(path)
@@ -71,6 +72,15 @@ def _read_table(path: Path) -> tuple:
         raise InputError(f"{path}: the file has no data rows; a session needs at least "
                          f"{MIN_SAMPLES} gyro and {MIN_SAMPLES} magnetometer samples")
     return table, metadata
+
+
+def check_file_readable(path: Path) -> None:
+    """InputError naming the file when this user may not read it (before a reader calls it corrupt)."""
+    try:
+        with open(path, "rb"):
+            pass
+    except PermissionError:
+        raise InputError(f"{path}: cannot be read: permission denied (unreadable input)") from None
 
 
 def _is_parquet(path: Path) -> bool:
