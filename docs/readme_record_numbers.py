@@ -2,7 +2,8 @@
 adds these blocks to the README's; tests/test_doc_numbers.py checks them):
 
 - montecarlo-paper-table1.json (docs/make_table1_numbers.py): the honesty check, the EKF's R and h;
-- std-on-real-data.json (benchmarks/std_on_real_data.py): the room's wander, the split-half check on BROAD;
+- std-on-real-data.json (benchmarks/std_on_real_data.py): the room's wander, the split-half check on BROAD's .mat trials;
+- split-check-shipped.json (benchmarks/split_check_shipped.py): `magyro solve data/broad-02.parquet --split-check`;
 - predicted-vs-actual.json (benchmarks/predicted_vs_actual.py): the prediction against the spread of solves;
 - trajectory-accuracy.json (benchmarks/trajectory_accuracy.py): the attitude trajectory against the truth;
 and the code's constants (the unit check's bounds).
@@ -41,18 +42,35 @@ def ekf_mag(mc: dict) -> str:
             f"({mc['runs']} paper-table1 runs, docs/table1.md)")
 
 
-def room(std: dict) -> dict[str, str]:
+def shipped_split(split: dict | None) -> str:
+    """`magyro solve data/broad-02.parquet --split-check`'s RMS z (benchmarks/split_check_shipped.py's record)."""
+    if split is None:
+        return ""
+    r = split["rows"][0]
+    return (f"the shipped {r['session']}, whole and with its accelerometer, gives {r['rms_z']:.2f} (largest |z| "
+            f"{r['max_abs_z']:.1f}; `{r['command']}`, {split['date']}, commit `{split['commit']}`)")
+
+
+def room(std: dict, split: dict | None = None) -> dict[str, str]:
+    """The room's wander and the split-half RMS z on BROAD (benchmarks/std_on_real_data.py: the .mat trials cut to
+    their movement +/- 10 s, solved without the accelerometer) beside the shipped trial's as `magyro solve
+    --split-check` gives it (benchmarks/split_check_shipped.py)."""
+    if split is None and has_record("split-check-shipped"):
+        split = read_record("split-check-shipped")
     t = std["trials"].values()
     z, zw = [r["split_rms_z"] for r in t], [r["split_rms_z_white"] for r in t]
     ratio = [r["std_over_white_median"] for r in t]
+    cut = (f"the {len(z)} .mat recordings cut to their movement +/- 10 s and solved without the accelerometer "
+           f"(`python benchmarks/std_on_real_data.py`, {std['date']}, commit `{std['commit']}`")
+    shipped = shipped_split(split)
     return {
         "room-wander": (f"it wanders by {span([r['disturbance_percent'] for r in t], 1)} % of the field (BROAD's "
                         f"undisturbed trials), correlated over {span([r['correlation_time_s'] for r in t], 1)} s"),
-        "split-broad": (f"the RMS z is {span(z, 2)} (with `std_white` {span(zw, 2)}; "
-                        "`python benchmarks/std_on_real_data.py`, docs/real-data.md section 2)"),
+        "split-broad": (f"the RMS z is {span(z, 2)} (with `std_white` {span(zw, 2)}) on {cut}, docs/real-data.md "
+                        "section 2)" + (f"; {shipped}" if shipped else "")),
         "broad-std": (f"on these recordings the white-noise std is {span(ratio, 1)}x too small (median over the gyro "
-                      f"parameters); the std that counts the room's field gives split-half RMS z {span(z, 2)}, and "
-                      "`--split-check` says when it does not hold"),
+                      f"parameters); the std that counts the room's field gives split-half RMS z {span(z, 2)} on {cut})"
+                      + (f", and {shipped}" if shipped else "") + "; `--split-check` says when it does not hold"),
     }
 
 
