@@ -207,7 +207,7 @@ def anomaly_30(record: dict) -> str:
     """BROAD trial 30 (a magnet beside the path): what the recording check found there (the trials' record)."""
     found = record["trials"]["30"].get("findings", [])
     return (f"BROAD trial 30, {'where the check finds ' + ', '.join(f'`{k}`' for k in found) if found else 'where the check finds nothing'}"
-            f" (docs/numbers/{records.RECORD}.json)")
+            f" (docs/numbers/{records.RECORD}.json, commit `{record['commit']}`)")
 
 
 def blocks(shipped=None) -> dict[str, str]:

@@ -23,7 +23,8 @@ PREFILTER_EXAMPLE = (1.5, 28.0)   # Hz: a hand's turning, and a phone's gyro rat
 
 def honesty(mc: dict) -> str:
     rows = [r for r in table1.result(mc, ("nls",))["nls"].rows if np.isfinite(r.reported_over_actual)]
-    return (f"Over the {mc['runs']} simulated paper-table1 sessions of docs/table1.md, the mean reported std divided "
+    return (f"Over the {mc['runs']} simulated paper-table1 sessions of docs/table1.md (commit `{mc['commit']}`), the "
+            "mean reported std divided "
             f"by the actual spread is {span([r.reported_over_actual for r in rows], 2)} for every parameter "
             f"({len(rows)}: the gyro's, R, h and the lag)")
 
@@ -78,8 +79,8 @@ def prediction(pva: dict) -> str:
     ratio = np.asarray(pva["predicted"]) / np.asarray(pva["actual"])
     worst = float(np.max(np.abs(ratio - 1)))
     return (f"The prediction is within {100 * worst:.0f} % of the spread of {pva['runs']} solves for every gyro "
-            f"parameter (docs/observability.md section 6; with {pva['runs']} runs the spread itself is uncertain by "
-            f"about {100 / math.sqrt(2 * (pva['runs'] - 1)):.0f} %)")
+            f"parameter (docs/observability.md section 6, commit `{pva['commit']}`; with {pva['runs']} runs the spread "
+            f"itself is uncertain by about {100 / math.sqrt(2 * (pva['runs'] - 1)):.0f} %)")
 
 
 def trajectory(tr: dict) -> str:
