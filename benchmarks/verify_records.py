@@ -14,8 +14,9 @@ render, each with a tolerance of its kind:
   not in units of a std (the renderers print 2-3 significant digits; a code change moves them far more);
 - a timing: within the factor the table states (2x for a wall or CPU time, 1.25x for a ratio of two CPU times
   of one process), and only when the fresh run is on the record's machine (its `machine` string) and other
-  processes took under half a CPU while it ran: a timing on a busy or different machine is shown, marked SKIP,
-  and fails nothing (a check that fails on load would be a check of the machine, not of the code);
+  processes took under half a CPU both while it ran and while the record was measured (the record's `other_load`,
+  when it has one): a timing on a busy or different machine is shown, marked SKIP, and fails nothing (a check
+  that fails on load would be a check of the machine, not of the code);
 - a count or a label: exactly.
 
 Records that read ../shared/data (BROAD) are skipped, saying so, only when ../shared is absent (CI has it).
@@ -27,6 +28,7 @@ command (docs/numbers/README.md).
 import argparse
 import json
 import math
+import re
 import os
 import shlex
 import subprocess
@@ -265,6 +267,12 @@ def show(values: list) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+def recorded_load(record: dict) -> float | None:
+    """The other processes' CPUs while the record was measured (its `other_load` line), None when not recorded."""
+    m = re.search(r"\((\d+) % of one of", record.get("other_load", ""))
+    return None if m is None else int(m.group(1)) / 100.0
+
+
 def compare(spec: Record, old: dict, new: dict, other_cpus: float) -> list[tuple[str, str, str, str, str]]:
     """One row per field: (field, old, new, tolerance, PASS / FAIL / SKIP reason)."""
     rows = []
@@ -281,7 +289,9 @@ def compare(spec: Record, old: dict, new: dict, other_cpus: float) -> list[tuple
             if not same_machine:
                 verdict = f"SKIP (machine {spec.machine(new)!r}, record's {spec.machine(old)!r})"
             elif other_cpus > QUIET_OTHER_CPUS:
-                verdict = f"SKIP (busy: other processes {other_cpus:.1f} CPUs)"
+                verdict = f"SKIP (busy now: other processes {other_cpus:.1f} CPUs)"
+            elif (recorded := recorded_load(old)) is not None and recorded > QUIET_OTHER_CPUS:
+                verdict = f"SKIP (the record was measured busy: other processes {recorded:.1f} CPUs)"
         rows.append((f.name, show(a), show(b), f.tolerance(), verdict))
     return rows
 
