@@ -68,11 +68,16 @@ def at(path: str) -> Callable[[dict], list]:
                 else:
                     out.append(item[part])
             items = out
-        flat = []
-        for item in items:
-            flat.extend(item) if isinstance(item, list) else flat.append(item)
-        return flat
+        return flattened(items)
     return get
+
+
+def flattened(items: list) -> list:
+    """Nested lists as one list of numbers and labels, in order."""
+    flat = []
+    for item in items:
+        flat.extend(flattened(item)) if isinstance(item, list) else flat.append(item)
+    return flat
 
 
 def ratio_of(numerator: str, denominator: str) -> Callable[[dict], list]:
@@ -283,7 +288,11 @@ def compare(spec: Record, old: dict, new: dict, other_cpus: float) -> list[tuple
         except (KeyError, IndexError, TypeError) as e:
             rows.append((f.name, "?", "?", f.tolerance(), f"FAIL (missing {e})"))
             continue
-        ok = len(a) == len(b) and all(f.within(x, y) for x, y in zip(a, b))
+        try:
+            ok = len(a) == len(b) and all(f.within(x, y) for x, y in zip(a, b))
+        except (TypeError, ValueError) as e:
+            rows.append((f.name, show(a), show(b), f.tolerance(), f"FAIL (not comparable: {e})"))
+            continue
         verdict = "PASS" if ok else "FAIL"
         if f.timing and not ok:
             if not same_machine:

@@ -395,5 +395,8 @@ def test_verify_records_compares_within_each_fields_tolerance():
     assert verdicts({"rows": [{"z": 0.006}, {"z": 0.023}], "seconds": 40.0, "machine": "m"}) == ["PASS", "FAIL"]
     assert verdicts({"rows": [{"z": 0.006}, {"z": 0.023}], "seconds": 40.0, "machine": "m"}, 1.5) == ["PASS", "SKIP"]
     assert verdicts({"rows": [{"z": 0.006}, {"z": 0.023}], "seconds": 40.0, "machine": "other"}) == ["PASS", "SKIP"]
+    nested = verify_records.Record("y", "", "", [verify_records.deterministic("rows.*.spans_s", abs=0.05)], ())
+    assert verify_records.compare(nested, {"rows": [{"spans_s": [[0.0, 90.0]]}]},
+                                  {"rows": [{"spans_s": [[0.0, 90.01]]}]}, 0.0)[0][4] == "PASS"
     old["other_load"] = "other processes used 42 CPU-s during the benchmark's 32 s (132 % of one of 2 CPUs; ...)"
     assert verdicts({"rows": [{"z": 0.006}, {"z": 0.023}], "seconds": 40.0, "machine": "m"}) == ["PASS", "SKIP"]
