@@ -209,10 +209,13 @@ NOT_COVERED: list[Expensive] = [
     Expensive("accelerometer-phone-module-acc", "about 15 min (200 seeds, 2 jobs)", ("docs/accelerometer.md",)),
     Expensive("accelerometer-paper-table1-acc-still", "about 6 min (80 seeds)", ("docs/accelerometer.md",)),
     Expensive("accelerometer-real", "about 20 min (every real recording)", ("docs/accelerometer.md",)),
-    Expensive("accelerometer-hand-models", "several minutes (six hand models x two problems)",
+    Expensive("accelerometer-hand-models", "over 15 min loaded (stopped at 900 s), 4 min quiet: hand models x two "
+              "problems",
               ("docs/accelerometer.md",)),
-    Expensive("hand-states-std-paper-table1-acc", "several minutes (64 seeds)", ("docs/accelerometer.md",)),
-    Expensive("hand-states-std-phone-module-acc", "several minutes (64 seeds)", ("docs/accelerometer.md",)),
+    Expensive("hand-states-std-paper-table1-acc", "338 s loaded, 1-2 min quiet (64 seeds, 2 jobs)",
+              ("docs/accelerometer.md",)),
+    Expensive("hand-states-std-phone-module-acc", "about the same as paper-table1-acc's (64 seeds, 2 jobs)",
+              ("docs/accelerometer.md",)),
     Expensive("attached-magnets", "218 s quiet (three BROAD trials, three walks each)", ("docs/real-data.md",)),
     Expensive("broad-reference", "7 min 19 s loaded (432 s of trials; 112 s quiet): nine BROAD trials", ("docs/real-data.md",)),
     Expensive("broad-trials", "5-10 min (ten BROAD trials with split checks); trial 02 re-measured by "
