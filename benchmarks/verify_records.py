@@ -207,31 +207,32 @@ class Expensive:
 
 
 NOT_COVERED: list[Expensive] = [
-    Expensive("accelerometer-paper-table1-acc", "about 15 min (200 seeds, 2 jobs)", ("docs/accelerometer.md",)),
-    Expensive("accelerometer-phone-module-acc", "about 15 min (200 seeds, 2 jobs)", ("docs/accelerometer.md",)),
-    Expensive("accelerometer-paper-table1-acc-still", "about 6 min (80 seeds)", ("docs/accelerometer.md",)),
-    Expensive("accelerometer-real", "about 20 min (every real recording)", ("docs/accelerometer.md",)),
+    Expensive("accelerometer-paper-table1-acc", "estimated 10-20 min (200 seeds, 2 jobs; not timed)", ("docs/accelerometer.md",)),
+    Expensive("accelerometer-phone-module-acc", "estimated 10-20 min (200 seeds, 2 jobs; not timed)", ("docs/accelerometer.md",)),
+    Expensive("accelerometer-paper-table1-acc-still", "estimated 5-10 min (80 seeds; not timed)", ("docs/accelerometer.md",)),
+    Expensive("accelerometer-real", "about 20 min quiet, as its command states (every real recording)", ("docs/accelerometer.md",)),
     Expensive("accelerometer-hand-models", "over 15 min loaded (stopped at 900 s), 4 min quiet: hand models x two "
               "problems",
               ("docs/accelerometer.md",)),
     Expensive("hand-states-std-paper-table1-acc", "338 s loaded, 1-2 min quiet (64 seeds, 2 jobs)",
               ("docs/accelerometer.md",)),
-    Expensive("hand-states-std-phone-module-acc", "about the same as paper-table1-acc's (64 seeds, 2 jobs)",
+    Expensive("hand-states-std-phone-module-acc", "estimated as paper-table1-acc's (64 seeds, 2 jobs; not timed)",
               ("docs/accelerometer.md",)),
-    Expensive("attached-magnets", "218 s quiet (three BROAD trials, three walks each)", ("docs/real-data.md",)),
+    Expensive("attached-magnets", "218 s (its record; three BROAD trials, three walks each)", ("docs/real-data.md",)),
     Expensive("broad-reference", "7 min 19 s loaded (432 s of trials; 112 s quiet): nine BROAD trials", ("docs/real-data.md",)),
-    Expensive("broad-trials", "5-10 min (ten BROAD trials with split checks); trial 02 re-measured by "
-              "tests/test_doc_numbers.py's broad test", ("docs/real-data.md", "README.md", "docs/ekf.md")),
-    Expensive("ekf-real-data", "10-20 min (EKF and NLS on BROAD and the wild recordings; needs an import of "
-              "../shared/data/wild)", ("docs/ekf.md", "README.md")),
-    Expensive("ekf-variants", "196 s quiet (five EKF variants x ten seeds)", ("docs/ekf.md",)),
-    Expensive("montecarlo-paper-table1", "169 s quiet (50 runs, NLS and EKF)", ("docs/table1.md", "README.md")),
-    Expensive("montecarlo-paper-table1-200", "444 s quiet (200 runs)", ("docs/table1.md",)),
-    Expensive("predicted-vs-actual", "243 s quiet (100 solves)", ("docs/observability.md", "README.md")),
-    Expensive("bench-observe", "3-4 min (a cold process with an empty kernel cache, strides 1-20)",
+    Expensive("broad-trials", "estimated 5-10 min (ten BROAD trials with split checks; not timed); trial 02 "
+              "re-measured by tests/test_doc_numbers.py's broad test", ("docs/real-data.md", "README.md", "docs/ekf.md")),
+    Expensive("ekf-real-data", "estimated 10-20 min (EKF and NLS on BROAD and the wild recordings, EKF solves up to 68 s "
+              "each in its record; needs an import of ../shared/data/wild)", ("docs/ekf.md", "README.md")),
+    Expensive("ekf-variants", "196 s (its record; five EKF variants x ten seeds)", ("docs/ekf.md",)),
+    Expensive("montecarlo-paper-table1", "169 s (its record; 50 runs, NLS and EKF)", ("docs/table1.md", "README.md")),
+    Expensive("montecarlo-paper-table1-200", "444 s (its record; 200 runs)", ("docs/table1.md",)),
+    Expensive("predicted-vs-actual", "243 s (its record; 100 solves)", ("docs/observability.md", "README.md")),
+    Expensive("bench-observe", "estimated 3-4 min (a cold process with an empty kernel cache, 55 s in its record, and "
+              "strides 1-20; not timed)",
               ("docs/observability.md",)),
-    Expensive("bench-scale", "several minutes (a one-hour session of 360k samples)", ("README.md",)),
-    Expensive("suite-time", "5-6 min (the whole test suite)", ("README.md",),
+    Expensive("bench-scale", "estimated several minutes (a one-hour session of 360k samples; not timed)", ("README.md",)),
+    Expensive("suite-time", "333 s (its record: the whole test suite)", ("README.md",),
               why="the whole suite; rendered only once the README has its markers"),
 ]
 
