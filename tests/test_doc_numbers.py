@@ -400,3 +400,9 @@ def test_verify_records_compares_within_each_fields_tolerance():
                                   {"rows": [{"spans_s": [[0.0, 90.01]]}]}, 0.0)[0][4] == "PASS"
     old["other_load"] = "other processes used 42 CPU-s during the benchmark's 32 s (132 % of one of 2 CPUs; ...)"
     assert verdicts({"rows": [{"z": 0.006}, {"z": 0.023}], "seconds": 40.0, "machine": "m"}) == ["PASS", "SKIP"]
+
+
+def test_verify_records_skips_a_broad_record_without_shared_and_says_so(monkeypatch, tmp_path, capsys):
+    monkeypatch.setattr(verify_records, "BROAD", tmp_path / "no-broad")
+    assert verify_records.main(["--only", "std-on-real-data"]) == 0
+    assert "SKIP: no ../shared/data/broad" in capsys.readouterr().out
