@@ -81,6 +81,12 @@ def flattened(items: list) -> list:
     return flat
 
 
+def per_row(key: str, rows: str = "rows") -> Callable[[dict], list]:
+    """`key` of every row; a row without it (a refused case) gives the label 'refused' or None."""
+    return lambda r: flattened([row[key] if key in row else ("refused" if "refused" in row else None)
+                                for row in r[rows]])
+
+
 def ratio_of(numerator: str, denominator: str) -> Callable[[dict], list]:
     return lambda r: [a / b for a, b in zip(at(numerator)(r), at(denominator)(r))]
 
@@ -173,6 +179,23 @@ COVERED: list[Record] = [
            [deterministic("rows.*.rms_z", abs=0.01), deterministic("rows.*.max_abs_z", abs=0.05),
             Field("rows.*.worst"), deterministic("rows.*.spans_s", abs=0.05), Field("rows.*.command")],
            ("README.md",)),
+    Record("predicted-vs-actual", "python benchmarks/predicted_vs_actual.py --runs 100 --jobs 1 --out {out}",
+           "79 s quiet (beside another job)",
+           [Field("runs"), deterministic("predicted", rel=0.01), deterministic("predicted_stride_1", rel=0.01),
+            deterministic("actual", rel=0.01), deterministic("mean_reported_std", rel=0.01),
+            deterministic("ratio", abs=0.01)],
+           ("docs/observability.md", "README.md")),
+    Record("attached-magnets", "python benchmarks/attached_magnets.py --out {out}", "77 s quiet (beside another job)",
+           [deterministic("undisturbed.scale_ppm_mean", abs=5.0), deterministic("undisturbed.scale_ppm_min", abs=5.0),
+            deterministic("undisturbed.scale_ppm_max", abs=5.0),
+            Field("rows.*.trial"), Field("rows.*.walk_ut_sqrt_s"),
+            Field("scale_minus_undisturbed_ppm", per_row("scale_minus_undisturbed_ppm"), abs=50.0),
+            Field("scale_std_ppm", per_row("scale_std_ppm"), rel=0.01),
+            Field("bias_minus_rests_deg_s", per_row("bias_minus_rests_deg_s"), abs=0.003),
+            Field("bias_std_deg_s", per_row("bias_std_deg_s"), rel=0.01),
+            Field("rest_bias_deg_s", per_row("rest_bias_deg_s"), abs=0.003),
+            Field("field_disturbance_percent", per_row("field_disturbance_percent"), abs=0.1)],
+           ("docs/real-data.md",), shared=True),
     Record("bench-recording-check", "python benchmarks/bench_recording_check.py --out {out}", "101-120 s",
            [Field("rows.*.session"), Field("rows.*.samples"), timing("rows.*.check_s"), timing("rows.*.solve_s"),
             timing("rows.*.check_s / solve_s", 2.0, ratio_of("rows.*.check_s", "rows.*.solve_s"))],
@@ -218,7 +241,6 @@ NOT_COVERED: list[Expensive] = [
               ("docs/accelerometer.md",)),
     Expensive("hand-states-std-phone-module-acc", "estimated as paper-table1-acc's (64 seeds, 2 jobs; not timed)",
               ("docs/accelerometer.md",)),
-    Expensive("attached-magnets", "218 s (its record; three BROAD trials, three walks each)", ("docs/real-data.md",)),
     Expensive("broad-reference", "7 min 19 s loaded (432 s of trials; 112 s quiet): nine BROAD trials", ("docs/real-data.md",)),
     Expensive("broad-trials", "estimated 5-10 min (ten BROAD trials with split checks; not timed); trial 02 "
               "re-measured by tests/test_doc_numbers.py's broad test", ("docs/real-data.md", "README.md", "docs/ekf.md")),
@@ -227,7 +249,6 @@ NOT_COVERED: list[Expensive] = [
     Expensive("ekf-variants", "762 s loaded (196 s quiet, its former record): five EKF variants x ten seeds", ("docs/ekf.md",)),
     Expensive("montecarlo-paper-table1", "169 s (its record; 50 runs, NLS and EKF)", ("docs/table1.md", "README.md")),
     Expensive("montecarlo-paper-table1-200", "444 s (its record; 200 runs)", ("docs/table1.md",)),
-    Expensive("predicted-vs-actual", "243 s (its record; 100 solves)", ("docs/observability.md", "README.md")),
     Expensive("bench-observe", "estimated 3-4 min (a cold process with an empty kernel cache, 55 s in its record, and "
               "strides 1-20; not timed)",
               ("docs/observability.md",)),
