@@ -132,8 +132,8 @@ class Record:
     """A covered record: its command (`{out}`: the fresh record's path), its cost, the fields its pages render."""
     name: str
     command: str
-    cost: str                      # wall time of the command measured on the 2-core machine under other engineers'
-                                   # load (other processes 1.8-1.9 CPUs, load average 6-24), warm kernel cache
+    cost: str                      # wall time of the command on the 2-core machine, warm kernel cache: "half-loaded"
+                                   # other processes took 1.0 CPU (whole run 327 s), "loaded" 1.8-1.9 CPUs (1042 s)
     fields: list[Field]
     pages: tuple[str, ...]
     shared: bool = False           # reads ../shared/data
@@ -154,19 +154,19 @@ def timing(path: str, factor: float = 2.0, get=None) -> Field:
 
 
 COVERED: list[Record] = [
-    Record("stride-agreement", "python benchmarks/stride_agreement.py --out {out}", "87-142 s (5 min 49 s on a cold kernel cache)",
+    Record("stride-agreement", "python benchmarks/stride_agreement.py --out {out}", "24 s half-loaded, 87-142 s loaded (5 min 49 s on a cold kernel cache)",
            [deterministic("rows.*.max_abs_z", abs=0.01), Field("rows.*.worst"), Field("rows.*.strides")],
            ("README.md",)),
-    Record("trajectory-accuracy", "python benchmarks/trajectory_accuracy.py --out {out}", "100-274 s (11 s quiet)",
+    Record("trajectory-accuracy", "python benchmarks/trajectory_accuracy.py --out {out}", "38 s half-loaded, 100-274 s loaded (11 s quiet)",
            [deterministic("simulated.rms_z", abs=0.02), Field("simulated.runs"),
             deterministic("broad_02.median_deg", rel=0.01), deterministic("broad_02.p95_deg", rel=0.01),
             deterministic("broad_02.rms_z_per_axis", abs=0.05)],
            ("README.md", "docs/real-data.md")),
-    Record("ekf-lag-shipped", "python benchmarks/ekf_lag_shipped.py --out {out}", "83-139 s",
+    Record("ekf-lag-shipped", "python benchmarks/ekf_lag_shipped.py --out {out}", "16 s half-loaded, 83-139 s loaded",
            [deterministic("eq13_lag_ms", abs=0.05), deterministic("ekf_lag_ms", abs=0.05),
             deterministic("ekf_lag_std_ms", abs=0.05), Field("filter_runs"), Field("trial")],
            ("docs/ekf.md",)),
-    Record("accelerometer-broad-02", "python benchmarks/accelerometer.py real --out {out}", "114-135 s",
+    Record("accelerometer-broad-02", "python benchmarks/accelerometer.py real --out {out}", "18 s half-loaded, 114-135 s loaded",
            [deterministic("rests.*.f_over_g", abs=1e-5), deterministic("rests.*.raw_over_g", abs=1e-5),
             deterministic("rests.*.span_s", abs=0.05),
             deterministic("halves_rms_z", abs=0.01), deterministic("halves_max_z", abs=0.05), Field("halves_worst"),
@@ -175,17 +175,17 @@ COVERED: list[Record] = [
             timing("solve_cpu_s_accelerometer / solve_cpu_s", 1.25,
                    ratio_of("solve_cpu_s_accelerometer", "solve_cpu_s"))],
            ("docs/accelerometer.md", "README.md")),
-    Record("split-check-shipped", "python benchmarks/split_check_shipped.py --out {out}", "52-89 s",
+    Record("split-check-shipped", "python benchmarks/split_check_shipped.py --out {out}", "10 s half-loaded, 52-89 s loaded",
            [deterministic("rows.*.rms_z", abs=0.01), deterministic("rows.*.max_abs_z", abs=0.05),
             Field("rows.*.worst"), deterministic("rows.*.spans_s", abs=0.05), Field("rows.*.command")],
            ("README.md",)),
     Record("predicted-vs-actual", "python benchmarks/predicted_vs_actual.py --runs 100 --jobs 1 --out {out}",
-           "79 s quiet (beside another job)",
+           "66 s half-loaded, 79 s beside another job",
            [Field("runs"), deterministic("predicted", rel=0.01), deterministic("predicted_stride_1", rel=0.01),
             deterministic("actual", rel=0.01), deterministic("mean_reported_std", rel=0.01),
             deterministic("ratio", abs=0.01)],
            ("docs/observability.md", "README.md")),
-    Record("attached-magnets", "python benchmarks/attached_magnets.py --out {out}", "77 s quiet (beside another job)",
+    Record("attached-magnets", "python benchmarks/attached_magnets.py --out {out}", "82 s half-loaded, 77 s beside another job",
            [deterministic("undisturbed.scale_ppm_mean", abs=5.0), deterministic("undisturbed.scale_ppm_min", abs=5.0),
             deterministic("undisturbed.scale_ppm_max", abs=5.0),
             Field("rows.*.trial"), Field("rows.*.walk_ut_sqrt_s"),
@@ -196,17 +196,17 @@ COVERED: list[Record] = [
             Field("rest_bias_deg_s", per_row("rest_bias_deg_s"), abs=0.003),
             Field("field_disturbance_percent", per_row("field_disturbance_percent"), abs=0.1)],
            ("docs/real-data.md",), shared=True),
-    Record("bench-recording-check", "python benchmarks/bench_recording_check.py --out {out}", "101-120 s",
+    Record("bench-recording-check", "python benchmarks/bench_recording_check.py --out {out}", "21 s half-loaded, 101-120 s loaded",
            [Field("rows.*.session"), Field("rows.*.samples"), timing("rows.*.check_s"), timing("rows.*.solve_s"),
             timing("rows.*.check_s / solve_s", 2.0, ratio_of("rows.*.check_s", "rows.*.solve_s"))],
            ("README.md",)),
-    Record("bench-ekf", "python benchmarks/bench_ekf.py --repeat 3 --out {out}", "112-152 s",
+    Record("bench-ekf", "python benchmarks/bench_ekf.py --repeat 3 --out {out}", "35 s half-loaded, 112-152 s loaded",
            [Field("rows.*.problem"), Field("rows.*.samples"), Field("rows.*.duration_s"),
             timing("rows.*.filter_26_s"), timing("rows.*.filter_17_s"), timing("rows.*.calibrate_s"),
             timing("rows.*.filter_26_samples_per_cpu_s"), timing("rows.*.filter_17_samples_per_cpu_s")],
            ("docs/ekf.md",)),
     Record("std-on-real-data", "python benchmarks/std_on_real_data.py --trials 02 --distorted 02 --out {out}",
-           "72 s (trial 02 of 6)",
+           "17 s half-loaded, 72 s loaded (trial 02 of 6)",
            [deterministic("trials.02.disturbance_percent", rel=0.01),
             deterministic("trials.02.correlation_time_s", rel=0.01),
             deterministic("trials.02.std_over_white_median", rel=0.01),
