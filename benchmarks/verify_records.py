@@ -213,8 +213,8 @@ COVERED: list[Record] = [
             deterministic("trials.02.split_rms_z", abs=0.01), deterministic("trials.02.split_rms_z_white", abs=0.01),
             deterministic("distortions.02.std.*", abs=0.02), deterministic("distortions.02.std_white.*", abs=0.02)],
            ("README.md", "docs/real-data.md", "docs/ekf.md"), shared=True, partial=True,
-           note="trial 02 only (the whole record, 6 trials and day B's chi-square, is 402 s loaded; "
-                "its commit is on its pages)"),
+           note="trial 02 only (the whole record, 6 trials and day B's chi-square, is 153 s half-loaded, 141 s of CPU, "
+                "402 s loaded: over two minutes even quiet; its commit is on its pages)"),
 ]
 
 
