@@ -200,7 +200,7 @@ def misfit_broad(record: dict) -> str:
     trials = [r["name"].split()[1] for r in record["rows"] if r["name"].startswith("BROAD")]
     return (f"the results of either method on BROAD {trials[0]}-{trials[-1]} reach at most "
             f"{max(a for a, _ in solved):.2f} over the short windows and {max(b for _, b in solved):.2f} over the long "
-            f"ones ({record['date']})")
+            f"ones ({record['date']}, commit `{record['commit']}`)")
 
 
 LAG = "ekf-lag-shipped"   # benchmarks/ekf_lag_shipped.py --out
@@ -215,7 +215,9 @@ def lag_shipped_block(record: dict) -> str:
 
 def blocks() -> dict[str, str]:
     out = check_blocks()
-    out["ekf-lag-07"] = f"{read_record('broad-trials')['trials']['07']['lag_ms']:.1f} ms (docs/real-data.md section 1)"
+    trials = read_record("broad-trials")
+    out["ekf-lag-07"] = (f"{trials['trials']['07']['lag_ms']:.1f} ms (docs/real-data.md section 1, "
+                         f"commit `{trials['commit']}`)")
     import shipped_data_numbers
 
     out["ekf-mag-levels"] = shipped_data_numbers.ekf_mag_levels_block()
@@ -231,11 +233,12 @@ def blocks() -> dict[str, str]:
                     "ekf-consider": consider_block(v), "ekf-no-consider-z": no_consider_z_block(v),
                     "ekf-step1": step1_block(v), "ekf-literal": literal_block(v)})
     if (RECORDS / "std-on-real-data.json").is_file():
-        t = read_record("std-on-real-data")["trials"]["07"]
+        std_record = read_record("std-on-real-data")
+        t = std_record["trials"]["07"]
         out["ekf-room-07"] = (f"{t['disturbance_percent']:.2f} % of the field, correlated over "
                               f"{t['correlation_time_s']:.1f} s, on trial 07")
         out["ekf-room-ratio"] = (f"{t['std_over_white_median']:.1f}x its white std (median over the gyro parameters, "
-                                 "docs/real-data.md section 2)")
+                                 f"docs/real-data.md section 2, commit `{std_record['commit']}`)")
         if has_record(REAL):
             row = next(r for r in read_record(REAL)["rows"] if r["name"] == "BROAD 07")
             if row.get("ekf_std_over_white"):

@@ -191,7 +191,7 @@ def predicted_blocks(record: dict) -> dict[str, str]:
     inside10 = int(np.sum(np.abs(ratio - 1) <= 0.10))
     return {
         "predicted-command": (f"With N = {n} (`{record['command']}`, {record['date']}, commit `{record['commit']}`; "
-                              f"{record['seconds'] / 60:.0f} minutes on this shared 2-core machine, one job)"),
+                              f"{record['seconds']:.0f} s on this shared 2-core machine, one job)"),
         "predicted-table": doc_blocks.table(
             ["parameter", "predicted (observe)", "predicted (stride 1)", "actual spread", "mean reported std (solve)",
              "predicted / actual", f"within +/-{100 * band:.0f} %"], rows, left=(0, -1)),

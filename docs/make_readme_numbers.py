@@ -211,7 +211,7 @@ def anomaly_30(record: dict) -> str:
     """BROAD trial 30 (a magnet beside the path): what the recording check found there (the trials' record)."""
     found = record["trials"]["30"].get("findings", [])
     return (f"BROAD trial 30, {'where the check finds ' + ', '.join(f'`{k}`' for k in found) if found else 'where the check finds nothing'}"
-            f" (docs/numbers/{records.RECORD}.json)")
+            f" (docs/numbers/{records.RECORD}.json, commit `{record['commit']}`)")
 
 
 def blocks(shipped=None) -> dict[str, str]:
@@ -222,7 +222,8 @@ def blocks(shipped=None) -> dict[str, str]:
     return {"targets": targets_block(), "bias-sign": bias_sign_block(session, cal), "px4-cost": px4_block(cal),
             "worked-example": worked_example_block(session, cal), "trajectory-nodes": trajectory_nodes_block(cal),
             "held": held_block(session), "shipped-results": shipped_results_block(session, cal),
-            "broad-ratios": f"calibrated dead reckoning is {records.ratio_span(record)} of the raw error",
+            "broad-ratios": (f"calibrated dead reckoning is {records.ratio_span(record)} of the raw error "
+                             f"(`{record.get('commit') or record.get('provenance', {}).get('commit', '?')}`)"),
             "field-change-broad": field_change_broad(record), "anomaly-30": anomaly_30(record),
             "serial-drift": shipped_data.serial_drift_block(),
             "mag-autocorrelation": shipped_data.mag_autocorrelation_block(),

@@ -289,7 +289,7 @@ def readme_blocks(record: dict | None = None) -> dict[str, str]:
         f"std/CRLB <= {max(r.std_over_crlb for r in g):.2f} for all 12 gyro parameters;",
         f"|mean error|/std <= {max(abs(r.mean_error_over_std) for r in g):.2f};",
         "the std a user reads (reported) over the actual spread: "
-        f"{doc_blocks.span([r.reported_over_actual for r in g], 2)}."])}
+        f"{doc_blocks.span([r.reported_over_actual for r in g], 2)} ({record['runs']} runs at `{record['commit']}`)."])}
 
 
 def main(argv: list[str]) -> int:

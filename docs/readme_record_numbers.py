@@ -3,7 +3,8 @@ using-the-result.md, development.md), rendered from their records in docs/number
 adds these blocks to its pages'; tests/test_doc_numbers.py checks them):
 
 - montecarlo-paper-table1.json (docs/make_table1_numbers.py): the honesty check, the EKF's R and h;
-- std-on-real-data.json (benchmarks/std_on_real_data.py): the room's wander, the split-half check on BROAD;
+- std-on-real-data.json (benchmarks/std_on_real_data.py): the room's wander, the split-half check on BROAD's .mat trials;
+- split-check-shipped.json (benchmarks/split_check_shipped.py): `magyro solve data/broad-02.parquet --split-check`;
 - predicted-vs-actual.json (benchmarks/predicted_vs_actual.py): the prediction against the spread of solves;
 - trajectory-accuracy.json (benchmarks/trajectory_accuracy.py): the attitude trajectory against the truth;
 and the code's constants (the unit check's bounds).
@@ -23,7 +24,8 @@ PREFILTER_EXAMPLE = (1.5, 28.0)   # Hz: a hand's turning, and a phone's gyro rat
 
 def honesty(mc: dict) -> str:
     rows = [r for r in table1.result(mc, ("nls",))["nls"].rows if np.isfinite(r.reported_over_actual)]
-    return (f"Over the {mc['runs']} simulated paper-table1 sessions of docs/table1.md, the mean reported std divided "
+    return (f"Over the {mc['runs']} simulated paper-table1 sessions of docs/table1.md (commit `{mc['commit']}`), the "
+            "mean reported std divided "
             f"by the actual spread is {span([r.reported_over_actual for r in rows], 2)} for every parameter "
             f"({len(rows)}: the gyro's, R, h and the lag)")
 
@@ -31,7 +33,7 @@ def honesty(mc: dict) -> str:
 def homogeneous_std(mc: dict) -> str:
     g = table1.gyro(table1.result(mc, ("nls",))["nls"].rows)
     return (f"over the {mc['runs']} paper-table1 runs of docs/table1.md the reported std is on average "
-            f"{np.mean([r.reported_over_actual for r in g]):.2f}x the actual spread (12 gyro parameters)")
+            f"{np.mean([r.reported_over_actual for r in g]):.2f}x the actual spread (12 gyro parameters; `{mc['commit']}`)")
 
 
 def ekf_mag(mc: dict) -> str:
@@ -39,21 +41,38 @@ def ekf_mag(mc: dict) -> str:
     mag = [r.name for r in res["nls"].rows if r.group in ("R", "h")]
     ratio = [res["ekf"].row(n).std / res["nls"].row(n).std for n in mag]
     return (f"its R and h spread {span(ratio, 1)}x as much as the joint least squares' "
-            f"({mc['runs']} paper-table1 runs, docs/table1.md)")
+            f"({mc['runs']} paper-table1 runs at `{mc['commit']}`, docs/table1.md)")
 
 
-def room(std: dict) -> dict[str, str]:
+def shipped_split(split: dict | None) -> str:
+    """`magyro solve data/broad-02.parquet --split-check`'s RMS z (benchmarks/split_check_shipped.py's record)."""
+    if split is None:
+        return ""
+    r = split["rows"][0]
+    return (f"the shipped {r['session']}, whole and with its accelerometer, gives {r['rms_z']:.2f} (largest |z| "
+            f"{r['max_abs_z']:.1f}; `{r['command']}`, {split['date']}, commit `{split['commit']}`)")
+
+
+def room(std: dict, split: dict | None = None) -> dict[str, str]:
+    """The room's wander and the split-half RMS z on BROAD (benchmarks/std_on_real_data.py: the .mat trials cut to
+    their movement +/- 10 s, solved without the accelerometer) beside the shipped trial's as `magyro solve
+    --split-check` gives it (benchmarks/split_check_shipped.py)."""
+    if split is None and has_record("split-check-shipped"):
+        split = read_record("split-check-shipped")
     t = std["trials"].values()
     z, zw = [r["split_rms_z"] for r in t], [r["split_rms_z_white"] for r in t]
     ratio = [r["std_over_white_median"] for r in t]
+    cut = (f"the {len(z)} .mat recordings cut to their movement +/- 10 s and solved without the accelerometer "
+           f"(`python benchmarks/std_on_real_data.py`, {std['date']}, commit `{std['commit']}`")
+    shipped = shipped_split(split)
     return {
         "room-wander": (f"it wanders by {span([r['disturbance_percent'] for r in t], 1)} % of the field (BROAD's "
                         f"undisturbed trials), correlated over {span([r['correlation_time_s'] for r in t], 1)} s"),
-        "split-broad": (f"the RMS z is {span(z, 2)} (with `std_white` {span(zw, 2)}; "
-                        "`python benchmarks/std_on_real_data.py`, docs/real-data.md section 2)"),
+        "split-broad": (f"the RMS z is {span(z, 2)} (with `std_white` {span(zw, 2)}) on {cut}, docs/real-data.md "
+                        "section 2)" + (f"; {shipped}" if shipped else "")),
         "broad-std": (f"on these recordings the white-noise std is {span(ratio, 1)}x too small (median over the gyro "
-                      f"parameters); the std that counts the room's field gives split-half RMS z {span(z, 2)}, and "
-                      "`--split-check` says when it does not hold"),
+                      f"parameters); the std that counts the room's field gives split-half RMS z {span(z, 2)} on {cut})"
+                      + (f", and {shipped}" if shipped else "") + "; `--split-check` says when it does not hold"),
     }
 
 
@@ -61,8 +80,8 @@ def prediction(pva: dict) -> str:
     ratio = np.asarray(pva["predicted"]) / np.asarray(pva["actual"])
     worst = float(np.max(np.abs(ratio - 1)))
     return (f"The prediction is within {100 * worst:.0f} % of the spread of {pva['runs']} solves for every gyro "
-            f"parameter (docs/observability.md section 6; with {pva['runs']} runs the spread itself is uncertain by "
-            f"about {100 / math.sqrt(2 * (pva['runs'] - 1)):.0f} %)")
+            f"parameter (docs/observability.md section 6, commit `{pva['commit']}`; with {pva['runs']} runs the spread "
+            f"itself is uncertain by about {100 / math.sqrt(2 * (pva['runs'] - 1)):.0f} %)")
 
 
 def trajectory(tr: dict) -> str:
@@ -111,6 +130,15 @@ def recording_check_timing(record: dict) -> str:
             f"{100 * r['check_s'] / r['solve_s']:.1f} % of its solve; `{record['command']}`, {load_label(record)})")
 
 
+def cold_start(record: dict) -> str:
+    """benchmarks/bench_cold_start.py's record: the README's first command on a fresh install, cold and warm."""
+    compiled = sorted(set(record["cold_kernels_compiled"]))
+    return (f"`{record['readme_first_command']}` on a fresh install with an empty kernel cache compiled "
+            f"{', '.join(map(str, compiled))} kernels and took {record['cold_s']:.1f} s, "
+            f"{record['cold_over_warm']:.2f}x a warm run (installing compiled {record['install_kernels_compiled']} "
+            f"kernels; `{record['command']}`: {load_label(record)})")
+
+
 def suite_time(record: dict) -> str:
     """benchmarks/suite_time.py's record: how long the tests took, where and under how much other load."""
     c = record["counts"]
@@ -136,7 +164,8 @@ def blocks() -> dict[str, str]:
     if has_record("predicted-vs-actual"):
         out["prediction-accuracy"] = prediction(read_record("predicted-vs-actual"))
     for name, key, make in (("bench-scale", "scale-timing", scale_timing),
-                            ("bench-recording-check", "recording-check-timing", recording_check_timing)):
+                            ("bench-recording-check", "recording-check-timing", recording_check_timing),
+                            ("bench-cold-start", "cold-start", cold_start)):
         if has_record(name):
             out[key] = make(read_record(name))
     if has_record("ekf-real-data"):

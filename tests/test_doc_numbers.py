@@ -370,3 +370,56 @@ def test_trial_30_s_field_anomaly_is_what_the_check_finds_now():
     kinds = {f.kind for f in repair_recording(session)[1].findings}
     recorded = blocks_module.read_record(records.RECORD)["trials"]["30"]["findings"]
     assert set(recorded) <= kinds
+
+
+verify_records = load_script(DOCS.parent / "benchmarks" / "verify_records.py")
+
+
+def test_every_record_is_re_measured_or_listed_as_too_expensive():
+    """benchmarks/verify_records.py knows every record of docs/numbers/: it re-runs it, or lists it with its cost."""
+    names = {path.stem for path in blocks_module.RECORDS.glob("*.json")}
+    covered = [spec.name for spec in verify_records.COVERED]
+    expensive = [e.name for e in verify_records.NOT_COVERED]
+    assert sorted(covered + expensive) == sorted(names)
+
+
+def test_a_record_not_re_measured_states_its_commit_where_it_is_shown():
+    """A record too expensive for verify_records (or re-run only in part) shows its commit on every page that
+    renders it: the reader sees how old the number is."""
+    unverified = [*verify_records.NOT_COVERED, *(s for s in verify_records.COVERED if s.partial)]
+    missing = []
+    for e in unverified:
+        commit = verify_records.record_commit(blocks_module.read_record(e.name))
+        missing += [f"{e.name} ({commit}): {page}" for page in e.pages
+                    if commit not in (DOCS.parent / page).read_text(encoding="utf-8")]
+    assert not missing
+
+
+def test_the_records_readme_lists_every_record():
+    text = (blocks_module.RECORDS / "README.md").read_text(encoding="utf-8")
+    assert [p.name for p in sorted(blocks_module.RECORDS.glob("*.json")) if f"`{p.name}`" not in text] == []
+
+
+def test_verify_records_compares_within_each_fields_tolerance():
+    """A deterministic field within its tolerance passes, beyond it fails; a timing off by more than its factor
+    on a busy machine is shown, skipped, not failed."""
+    spec = verify_records.Record("x", "", "", [verify_records.deterministic("rows.*.z", abs=0.01),
+                                               verify_records.timing("seconds", 2.0)], ())
+    old = {"rows": [{"z": 0.006}, {"z": 0.023}], "seconds": 10.0, "machine": "m"}
+    verdicts = lambda new, load=0.0: [row[4].split(" ")[0] for row in verify_records.compare(spec, old, new, load)]
+    assert verdicts({"rows": [{"z": 0.010}, {"z": 0.023}], "seconds": 15.0, "machine": "m"}) == ["PASS", "PASS"]
+    assert verdicts({"rows": [{"z": 0.086}, {"z": 0.023}], "seconds": 15.0, "machine": "m"}) == ["FAIL", "PASS"]
+    assert verdicts({"rows": [{"z": 0.006}, {"z": 0.023}], "seconds": 40.0, "machine": "m"}) == ["PASS", "FAIL"]
+    assert verdicts({"rows": [{"z": 0.006}, {"z": 0.023}], "seconds": 40.0, "machine": "m"}, 1.5) == ["PASS", "SKIP"]
+    assert verdicts({"rows": [{"z": 0.006}, {"z": 0.023}], "seconds": 40.0, "machine": "other"}) == ["PASS", "SKIP"]
+    nested = verify_records.Record("y", "", "", [verify_records.deterministic("rows.*.spans_s", abs=0.05)], ())
+    assert verify_records.compare(nested, {"rows": [{"spans_s": [[0.0, 90.0]]}]},
+                                  {"rows": [{"spans_s": [[0.0, 90.01]]}]}, 0.0)[0][4] == "PASS"
+    old["other_load"] = "other processes used 42 CPU-s during the benchmark's 32 s (132 % of one of 2 CPUs; ...)"
+    assert verdicts({"rows": [{"z": 0.006}, {"z": 0.023}], "seconds": 40.0, "machine": "m"}) == ["PASS", "SKIP"]
+
+
+def test_verify_records_skips_a_broad_record_without_shared_and_says_so(monkeypatch, tmp_path, capsys):
+    monkeypatch.setattr(verify_records, "BROAD", tmp_path / "no-broad")
+    assert verify_records.main(["--only", "std-on-real-data"]) == 0
+    assert "SKIP: no ../shared/data/broad" in capsys.readouterr().out

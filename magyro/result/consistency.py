@@ -10,9 +10,10 @@ against the full session's, C_b_m(half) = C_b_m(full) Exp(d), whose components
 are what its std is of. When the model holds, z is about unit normal: on
 simulated sessions (paper-table1, 20 seeds; phone-module, 10) the RMS of the
 twelve z stayed within 0.4-1.4 and the largest |z| below 3.1. On BROAD's
-undisturbed trials (02, 03, 05, 07, 09, 21) the RMS z is 0.87-1.18 with the std
-that counts the room, 1.85-3.19 with the white-noise std alone
-(benchmarks/std_on_real_data.py). The check warns at an RMS z above `MAX_RMS_Z`
+undisturbed trials (02, 03, 05, 07, 09, 21) the RMS z is 0.89-1.17 with the std
+that counts the room, 1.86-3.12 with the white-noise std alone
+(benchmarks/std_on_real_data.py: the .mat trials cut to their movement +/- 10 s,
+without the accelerometer; docs/numbers/std-on-real-data.json). The check warns at an RMS z above `MAX_RMS_Z`
 or one |z| above `MAX_HALF_Z`. Half a parameter's half-difference is its
 split-half error estimate (one degree of freedom).
 """
