@@ -101,7 +101,8 @@ def predicted_std(prep: Prepared, options: Options | None = None, method: NLS | 
     return predicted_std_and_disturbance(prep, options, method)[0]
 
 
-def predicted_std_and_disturbance(prep: Prepared, options: Options | None = None, method: NLS | None = None):
+def predicted_std_and_disturbance(prep: Prepared, options: Options | None = None, method: NLS | None = None,
+                                  room: bool = True):
     """One-sigma accuracy this recording can give, before solving.
 
     The Gauss-Newton (Fisher) information of the joint problem at the initial
@@ -112,10 +113,10 @@ def predicted_std_and_disturbance(prep: Prepared, options: Options | None = None
     prediction by no more than the few percent it moves K. The room's field
     disturbance is measured from the recording and counted as the solve counts
     it; what cannot be predicted before solving is the magnetometer noise the
-    solve re-weights to (its residuals' effective scale).
+    solve re-weights to (its residuals' effective scale). `room=False`: the white-noise information alone.
     """
     options, method = options or Options(), method or NLS()
     grid, lin, problem = build_problem(prep, options, method, search_lag=False)
     p = problem_parameters(problem, prep, lin, prep.sigma_mag, lin.time_offset_s)
-    cov, disturbance = covariance_and_disturbance(problem, lin, p, prep.session)
+    cov, disturbance = covariance_and_disturbance(problem, lin, p, prep.session if room else None)
     return std_from_covariance(cov), disturbance

@@ -33,7 +33,7 @@ from magyro.nls.solve import (build_problem, residual_matrix, solve_passes,
 from magyro.nls.disturbance import disturbance_covariance
 from magyro.nls.variance import secant_factor, variance_components
 from magyro.nls.trajectory import attitude_trajectory, solved_attitudes
-from magyro.observability.gate import REFUSAL_BOUND_NOTE, accuracy_shortfalls, accuracy_summary
+from magyro.observability.gate import REFUSAL_BOUND_NOTE, accuracy_shortfalls, accuracy_summary, room_cause
 from magyro.observability.prediction import excitation_gate
 from magyro.options import Options
 from magyro.progress import step
@@ -198,8 +198,7 @@ def solved_accuracy_gate(cal: Calibration, options: Options) -> list[str]:
     if not shortfalls:
         return []
     disturbance = cal.noise.field_disturbance
-    cause = (f"; the field wanders by {100 * disturbance.std_fraction:.1f} % along the path, which the std counts: record "
-             "away from iron and magnets, or longer" if disturbance is not None and disturbance.std_fraction > 0.002 else "")
+    cause = room_cause(None if disturbance is None else disturbance.std_fraction)
     summary = accuracy_summary(shortfalls, "one-sigma")
     if options.force:
         return [f"solved with --force although the std exceeds its bounds: {summary}{cause}"]

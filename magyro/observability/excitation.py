@@ -229,7 +229,8 @@ def judge(analysis: ObservabilityAnalysis, ellipsoid_problem: str | None, std: S
         return "marginal", "all 12 gyro parameters are excited, but their accuracy could not be predicted"
     shortfalls = accuracy_shortfalls(std, bounds)
     if shortfalls:
-        return "insufficient", f"{too_weak_reason(shortfalls)} (magyro solve refuses it too)"
+        wander = (disturbance or {}).get("std_fraction")
+        return "insufficient", f"{too_weak_reason(shortfalls, wander)} (magyro solve refuses it too)"
     above, worst = [], []
     for label, values, unit, target in accuracy_rows(std, targets):
         v = float(np.max(values)) if np.all(np.isfinite(values)) else math.inf

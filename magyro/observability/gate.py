@@ -232,14 +232,26 @@ REFUSAL_BOUND_NOTE = ("this is the refusal bound, Options.max_std or --max-std-*
                       "are a separate and stricter notion")
 
 
-def too_weak_reason(shortfalls: list[tuple[str, float, float, str]]) -> str:
+ROOM_NAMED_ABOVE = 0.002   # a field that wanders by more than 0.2 % along the path is named among a refusal's causes
+
+
+def room_cause(wander_fraction: float | None) -> str:
+    """'; the field wanders by x % ...' when the room's field wander (its std over the field, which the std counts)
+    is worth naming as a cause of a large std, else ''."""
+    if wander_fraction is None or not wander_fraction > ROOM_NAMED_ABOVE:
+        return ""
+    return (f"; the field wanders by {100 * wander_fraction:.1f} % along the path, which the std counts: record away "
+            "from iron and magnets, or longer")
+
+
+def too_weak_reason(shortfalls: list[tuple[str, float, float, str]], wander_fraction: float | None = None) -> str:
     """Why a motion is refused although it excites every gyro parameter: the words of `magyro observe`'s verdict and
-    of the solve's refusal alike, with the numbers and the motion to add."""
+    of the solve's refusal alike, with the numbers, the motion to add and the room's share."""
     return ("all 12 gyro parameters are excited, but too weakly for a calibration worth having: "
-            + accuracy_summary(shortfalls))
+            + accuracy_summary(shortfalls) + room_cause(wander_fraction))
 
 
-def accuracy_gate(std, options) -> list[str]:
+def accuracy_gate(std, options, wander_fraction: float | None = None) -> list[str]:
     """Refuse (ObservabilityError, exit 3) a motion that excites every parameter too weakly for `options.max_std`;
     with `options.force`, the shortfall comes back as a warning instead."""
     shortfalls = accuracy_shortfalls(std, options.max_std)
@@ -248,9 +260,10 @@ def accuracy_gate(std, options) -> list[str]:
     if not options.force:
         from magyro.errors import ObservabilityError
 
-        raise ObservabilityError(f"insufficient excitation: {too_weak_reason(shortfalls)} (magyro observe says the "
-                                 f"same; --force solves anyway; {REFUSAL_BOUND_NOTE})")
-    return [f"solved with --force although the motion is too weak: {accuracy_summary(shortfalls)}"]
+        raise ObservabilityError(f"insufficient excitation: {too_weak_reason(shortfalls, wander_fraction)} (magyro "
+                                 f"observe says the same; --force solves anyway; {REFUSAL_BOUND_NOTE})")
+    return [f"solved with --force although the motion is too weak: {accuracy_summary(shortfalls)}"
+            f"{room_cause(wander_fraction)}"]
 
 
 def unexcited_directions(analysis: ObservabilityAnalysis) -> np.ndarray | None:

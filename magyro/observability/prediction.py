@@ -7,7 +7,8 @@
 The prediction is the field's alone: the gyro and the magnetometer in the plain least squares at the solve's node
 stride, the accelerometer left out (gravity is shown beside observe's verdict, never in it), the Gauss-Newton
 information at the linear estimate with the room's field disturbance measured and counted
-(`magyro.nls.information.predicted_std_and_disturbance`). A strong signal to noise along every direction is no
+(`magyro.nls.information.predicted_std_and_disturbance`); with a moving hard iron (`NLS(hard_iron_walk=...)`) the
+field's wander is what the walk models, and is not counted as the room's (the solved std is bounded after the solve). A strong signal to noise along every direction is no
 shortcut: the x-io Fusion example's quarter sphere has 1100x its noise floor along its weakest direction and a
 field that wanders by 2.9 % along the path, which leaves a scale factor uncertain by 6.7 %.
 """
@@ -51,7 +52,9 @@ def predicted_accuracy(prep: Prepared, options: Options, method=None) -> Predict
     stride = prediction_stride(prep.session, method)
     plain = NLS(stride=stride, compiled=method.compiled if isinstance(method, NLS) else True)
     start = time.perf_counter()
-    std, disturbance = predicted_std_and_disturbance(prep, dataclasses.replace(options, accelerometer=False), plain)
+    room = not (isinstance(method, NLS) and method.hard_iron_walk is not None)   # a walking hard iron is the wander
+    std, disturbance = predicted_std_and_disturbance(prep, dataclasses.replace(options, accelerometer=False), plain,
+                                                     room=room)
     return PredictedAccuracy(std, disturbance, stride, time.perf_counter() - start)
 
 
@@ -67,4 +70,6 @@ def excitation_gate(prep: Prepared, options: Options, method=None) -> list[str]:
     `options.force`, that shortfall as a warning. Nothing to compute without bounds."""
     if not bounded(options):
         return []
-    return accuracy_gate(predicted_accuracy(prep, options, method).std, options)
+    predicted = predicted_accuracy(prep, options, method)
+    wander = None if predicted.disturbance is None else predicted.disturbance.std_fraction
+    return accuracy_gate(predicted.std, options, wander)
