@@ -309,7 +309,7 @@ def test_html_without_matplotlib(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "matplotlib", None)         # import matplotlib -> ImportError
     page = write_summary(mixed_fleet(10), tmp_path, LIMITS)["html"].read_text(encoding="utf-8")
     assert "data:image/png" not in page
-    assert "pip install 'magyro[plot]'" in page.replace("&#x27;", "'")
+    assert "pip install 'magyro[plot]', or pip install '.[plot]' in a clone" in page.replace("&#x27;", "'")
     assert "dev-bad&lt;1&gt;" in page
 
 

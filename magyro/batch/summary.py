@@ -279,8 +279,10 @@ def _distribution_section(table, limits, found) -> str:
     try:
         import matplotlib  # noqa: F401
     except ImportError:
+        from magyro.text import PLOT_INSTALL
+
         return (head + "<p class='sentence'>The figures need matplotlib, which is not installed: "
-                "<code>pip install 'magyro[plot]'</code> adds them.</p></section>")
+                f"<code>{html.escape(PLOT_INSTALL)}</code> adds them.</p></section>")
     from magyro.report.embed import embed_png
 
     sentence = (f"Each dot is one of the {len(calibrated)} calibrated devices (red: the value breaks its limit); "

@@ -26,7 +26,7 @@ def batch(
     jobs: int = typer.Option(1, "--jobs", "-j", min=1, help="Solve in this many processes (one BLAS thread each)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Solve on the Dask cluster whose scheduler is at this address (tcp://host:port; default: $MAGYRO_SCHEDULER, else the local pool of --jobs). Needs magyro[dask]."),
     redo: bool = typer.Option(False, "--redo", help="Solve every device again, even those already done with the same input and options."),
-    reports: bool = typer.Option(False, "--reports", help="Also write each device's HTML report into reports/ (needs magyro[plot]; slower)."),
+    reports: bool = typer.Option(False, "--reports", help="Also write each device's HTML report into reports/ (needs matplotlib: pip install '.[plot]' in a clone, 'magyro[plot]' from PyPI; slower)."),
     split_check: bool = typer.Option(False, "--split-check", help="Also calibrate each half of every recording alone (about 2x the time); gives the split_rms_z column."),
     accelerometer: Optional[bool] = typer.Option(None, "--accelerometer/--no-accelerometer", help="Calibrate each device's accelerometer (ax ay az, m/s^2) in the same least squares, as magyro solve does: gives the acc_* columns the max_abs_acc_* and target_acc_* limits bound. Default: for each device whose session has one (left out, saying why, where it cannot be calibrated); --accelerometer insists, --no-accelerometer never."),
     gravity: float = typer.Option(STANDARD_GRAVITY_M_S2, "--gravity", min=9.7, max=9.9, help="The local gravity in m/s^2 the accelerometers are calibrated against."),

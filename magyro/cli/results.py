@@ -94,7 +94,7 @@ def report_command(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress and no verdict on the terminal."),
 ):
     """One HTML page to read or send: the recording check, excitation, calibration with std, residuals, split-half
-    check and dead reckoning, each with a figure and a sentence saying whether it is good (needs magyro[plot])."""
+    check and dead reckoning, each with a figure and a sentence saying whether it is good (needs matplotlib: pip install '.[plot]' in a clone, 'magyro[plot]' from PyPI)."""
     from magyro.report import report_file
     from magyro.targets import resolve_targets
 

@@ -34,7 +34,7 @@ def solve(
     max_std_misalignment_deg: float = typer.Option(StdBounds.misalignment_deg, "--max-std-misalignment-deg", min=0.0, help="... of the misalignment, deg."),
     method: str = typer.Option("nls", "--method", help="nls (the joint least squares) or ekf (the paper's two steps and error-state EKF)."),
     history: Optional[Path] = typer.Option(None, "--history", readable=False, help="--method ekf: write K, bias, m^i and their 1-sigma over time (Parquet)."),
-    history_plot: Optional[Path] = typer.Option(None, "--history-plot", readable=False, help="--method ekf: plot them like the paper's Fig. 3/6/7 (needs magyro[plot])."),
+    history_plot: Optional[Path] = typer.Option(None, "--history-plot", readable=False, help="--method ekf: plot them like the paper's Fig. 3/6/7 (needs matplotlib: pip install '.[plot]' in a clone, 'magyro[plot]' from PyPI)."),
     trajectory: Optional[Path] = typer.Option(None, "--trajectory", readable=False, help="--method nls: write the solved attitude at the nodes (quaternion C_m_i and its std) and the calibrated field (Parquet)."),
     accelerometer: Optional[bool] = typer.Option(None, "--accelerometer/--no-accelerometer", help="--method nls: calibrate the accelerometer (ax ay az, m/s^2) in the same least squares: K_a, bias, C_b_a against gravity. Default: when the session has one, left out with a warning saying why when it cannot be calibrated; --accelerometer insists (exit 2 without one, exit 3 past its bound), --no-accelerometer never."),
     gravity: float = typer.Option(STANDARD_GRAVITY_M_S2, "--gravity", min=9.7, max=9.9, help="The local gravity in m/s^2 the accelerometer is calibrated against."),
