@@ -7,6 +7,7 @@ Cheap on purpose: `magyro check` and `magyro observe` decide every case here; no
 """
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -116,3 +117,28 @@ def test_the_sensor_logger_phone_recordings_are_checked_clean_and_judged_on_thei
         assert run_clean("check", sessions[name]).returncode == 0
         message = refusal(run_clean("observe", sessions[name]), 3)
         assert "excitation" in message, message
+
+
+def test_the_solves_screen_computes_the_prediction_wherever_observe_refuses(sessions):
+    """The solve skips the prediction (as much CPU as the solve itself) only for a motion strong in every direction
+    in a steady field (prediction.prediction_needed): the phones and the x-io board, whose signal to noise is in the
+    thousands but whose field wanders by 4-6 %, are predicted, and refused as observe refuses them; the shipped BROAD
+    trial, strong and steady, is not, and its prediction is far within the bounds. (Over every BROAD .mat trial the
+    screen and the prediction agree too: prediction.py's comment.)"""
+    from magyro import load_session
+    from magyro.front.prepare import prepare
+    from magyro.observability.gate import accuracy_shortfalls
+    from magyro.observability.prediction import SCREEN_WANDER, field_wander_fraction, predicted_accuracy, prediction_needed
+    from magyro.options import Options
+
+    options = Options()
+    for name in ("fusion", "simorxb"):
+        prep = prepare(load_session(sessions[name]), options)
+        assert field_wander_fraction(prep) > 2 * SCREEN_WANDER, name
+        assert prediction_needed(prep, options), name
+        assert accuracy_shortfalls(predicted_accuracy(prep, options).std, options.max_std), name
+    prep = prepare(load_session(Path(__file__).resolve().parents[1] / "data" / "broad-02.parquet"), options)
+    assert not prediction_needed(prep, options)
+    assert not accuracy_shortfalls(predicted_accuracy(prep, options).std, options.max_std)
+    tightened = Options(max_std=dataclasses.replace(options.max_std, bias_deg_s=0.015))
+    assert prediction_needed(prep, tightened)      # bounds of the user's own: always predicted
