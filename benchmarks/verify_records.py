@@ -17,7 +17,9 @@ render, each with a tolerance of its kind:
   of one process), and only when the fresh run is on the record's machine (its `machine` string) and other
   processes took under half a CPU both while it ran and while the record was measured (the record's `other_load`,
   when it has one): a timing on a busy or different machine is shown, marked SKIP, and fails nothing (a check
-  that fails on load would be a check of the machine, not of the code);
+  that fails on load would be a check of the machine, not of the code). Even then a timing beyond its factor is
+  only shown, marked MOVED, unless `--strict-timings`: one kind of 2-core machine ran the same commit's BROAD 02
+  solve at 0.94 s of CPU on one day and 2.0 s on another, both quiet (CI fails on numbers, not on speed);
 - a count or a label: exactly.
 
 Records that read ../shared/data (BROAD) are skipped, saying so, only when ../shared is absent (CI has it).
@@ -309,7 +311,8 @@ def recorded_load(record: dict) -> float | None:
     return None if m is None else int(m.group(1)) / 100.0
 
 
-def compare(spec: Record, old: dict, new: dict, other_cpus: float) -> list[tuple[str, str, str, str, str]]:
+def compare(spec: Record, old: dict, new: dict, other_cpus: float,
+            strict_timings: bool = False) -> list[tuple[str, str, str, str, str]]:
     """One row per field: (field, old, new, tolerance, PASS / FAIL / SKIP reason)."""
     rows = []
     same_machine = spec.machine(old) is None or spec.machine(old) == spec.machine(new)
@@ -325,7 +328,10 @@ def compare(spec: Record, old: dict, new: dict, other_cpus: float) -> list[tuple
             rows.append((f.name, show(a), show(b), f.tolerance(), f"FAIL (not comparable: {e})"))
             continue
         verdict = "PASS" if ok else "FAIL"
-        if f.timing and not ok:
+        if f.timing and not ok and not strict_timings:
+            verdict = ("MOVED (a timing: shown, not failed; the same kind of machine ran the base commit's BROAD 02 "
+                       "solve at 2.1x its recorded CPU on another day; --strict-timings fails it)")
+        elif f.timing and not ok:
             if not same_machine:
                 verdict = f"SKIP (machine {spec.machine(new)!r}, record's {spec.machine(old)!r})"
             elif other_cpus > QUIET_OTHER_CPUS:
@@ -356,6 +362,8 @@ def main(argv=None) -> int:
     ap.add_argument("--list", action="store_true", help="show the covered records and those too expensive")
     ap.add_argument("--only", help="comma-separated record names")
     ap.add_argument("--keep", type=Path, help="write the fresh records into this folder")
+    ap.add_argument("--strict-timings", action="store_true",
+                    help="fail a timing beyond its factor (quiet machine, record's machine) instead of showing it")
     a = ap.parse_args(argv)
     if a.list:
         list_records()
@@ -382,7 +390,7 @@ def main(argv=None) -> int:
                 continue
             old, new = committed(spec.name), json.loads(out.read_text(encoding="utf-8"))
             print(f"{wall:.0f} s; other processes {other:.1f} CPUs; record's commit {record_commit(old)}")
-            rows = compare(spec, old, new, other)
+            rows = compare(spec, old, new, other, a.strict_timings)
             width = max(len(r[0]) for r in rows)
             for r in rows:
                 print(f"  {r[0]:<{width}}  old {r[1]:<28} new {r[2]:<28} tol {r[3]:<16} {r[4]}")
