@@ -2,15 +2,17 @@
 `magyro observe` and the gate of `magyro solve` (either method), so that the two never disagree.
 
     predicted = predicted_accuracy(prep, options, method)   # the one-sigma of every parameter, the room's field
-    excitation_gate(predicted, options)                     # exit 3 below the refusal bound (--force: warnings)
+    excitation_gate(prep, options, method)                  # exit 3 past the refusal bound (--force: warnings)
 
 The prediction is the field's alone: the gyro and the magnetometer in the plain least squares at the solve's node
 stride, the accelerometer left out (gravity is shown beside observe's verdict, never in it), the Gauss-Newton
 information at the linear estimate with the room's field disturbance measured and counted
 (`magyro.nls.information.predicted_std_and_disturbance`); with a moving hard iron (`NLS(hard_iron_walk=...)`) the
-field's wander is what the walk models, and is not counted as the room's (the solved std is bounded after the solve). A strong signal to noise along every direction is no
-shortcut: the x-io Fusion example's quarter sphere has 1100x its noise floor along its weakest direction and a
-field that wanders by 2.9 % along the path, which leaves a scale factor uncertain by 6.7 %.
+field's wander is what the walk models, and is not counted as the room's (the solved std is bounded after the
+solve). A strong signal to noise alone is no shortcut: the x-io Fusion example's quarter sphere has 1100x its noise
+floor along its weakest direction and a field that wanders by 2.9 % along the path, which leaves a scale factor
+uncertain by 6.7 %. The solve's gate skips the prediction only where the motion is strong AND the field steady
+(`prediction_needed`); observe always makes it.
 """
 from __future__ import annotations
 
