@@ -28,7 +28,8 @@ from magyro.nls.hand_motion import hand_covariance_term, shifted_hand_covariance
 from magyro.nls.hand_states import hand_in_frame_i, hand_prior, hand_reach_m, interleave_hand, prior_information
 from magyro.nls.accelerometer import (HAND_LIMIT_OF_G, HandMotion, hand_motion, hand_too_big,
                                       still_hand_weights, white_variance)
-from magyro.nls.solve import (build_problem, residual_matrix, solve_passes,
+from magyro.nls.solve import (LOW_START_FACTOR, build_problem, first_gyro_density, residual_matrix, solve_passes,
+                              start_disagreement_deg,
                               solved_accelerometer_residuals, solved_excess)
 from magyro.nls.disturbance import disturbance_covariance
 from magyro.nls.variance import secant_factor, variance_components
@@ -55,7 +56,10 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     step("the linear estimate and the least-squares problem")
     grid, lin, problem = build_problem(prep, options, method)
     step(f"solving the least squares ({problem.n_x} unknowns, IPOPT)")
-    sol = solve_passes(problem, prep, lin, method, level_estimator(problem, prep, lin))
+    disagreement_deg = start_disagreement_deg(prep, grid, lin)
+    first_density = first_gyro_density(prep, disagreement_deg)
+    sol = solve_passes(problem, prep, lin, method, level_estimator(problem, prep, lin), first_density=first_density)
+    sol.stats["start_disagreement_deg"] = disagreement_deg
     hand = None
     if sol.hand_found:   # its first pass measured the hand: the passes go on with the hand's velocity as states
         hand = solved_hand_motion(problem, lin, sol)
@@ -71,7 +75,7 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
             f"--method ekf --force "
             f"gives an estimate whose std shows what is missing. {prep.analysis.summary()}", prep.analysis)
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
-        raise SolverError(not_converged_message(sol, decrement))
+        raise SolverError(not_converged_message(sol, decrement, prep, first_density))
     sol.stats["gauss_newton_decrement"] = decrement
     if problem.accelerometer and not problem.hand:
         hand = solved_hand_motion(problem, lin, sol)
@@ -86,6 +90,7 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
         cal.accelerometer.hand_rms_m_s2 = float(np.sqrt(hand.variance_m2_s4))
     if problem.hand:
         cal.solver.details["hand_states"] = hand_state_details(problem, sol)
+    cal.solver.details["start_disagreement_deg"] = disagreement_deg
     acc_warnings = accelerometer_gate(cal, options)   # first: an accelerometer past its bound widens the gyro's std
     cal.warnings.extend(gate_warnings or solved_accuracy_gate(cal, options))
     cal.warnings.extend(acc_warnings)
@@ -162,13 +167,35 @@ def hand_state_details(problem: JointProblem, sol) -> dict:
     return {"sigma_v_m_s": prior.sigma_v_m_s, "tau_s": prior.tau_s, "reach_m": hand_reach_m(problem, sol.x)}
 
 
-def not_converged_message(sol, decrement: float) -> str:
-    """Why the solve is refused (exit 1), with the evidence: never a printed nan."""
+def not_converged_message(sol, decrement: float, prep: Prepared | None = None, first_density: float | None = None) -> str:
+    """Why the solve is refused (exit 1), with the evidence and what was tried: never a printed nan."""
     still = (f"a further Gauss-Newton step would still reduce chi^2 by {significant(decrement)}" if np.isfinite(decrement) else
              "the Gauss-Newton step cannot be computed there: the information is singular or not finite")
     return (f"the solver did not converge: it {solver_outcome(sol.stats['return_status'])} after "
-            f"{sol.stats['iter_count']} iterations "
-            f"({still}); the data do not fit the model at the point it reached")
+            f"{sol.stats['iter_count']} iterations{passes_said(getattr(sol, 'passes', 1))} "
+            f"({still}); tried: {what_was_tried(sol, prep, first_density)}; the data do not fit the model at the "
+            f"point it reached: a field that is not homogeneous, a clock that is not steady or a gyro that saturates "
+            f"are the usual causes (magyro check looks for the last two)")
+
+
+def passes_said(passes: int) -> str:
+    """' in N passes' when the solve re-weighted between passes, else nothing."""
+    return f" in {passes} passes" if passes > 1 else ""
+
+
+def what_was_tried(sol, prep: Prepared | None, first_density: float | None) -> str:
+    """The start and the weighting the solve went from, in words (for its refusal)."""
+    far = getattr(sol, "stats", {}).get("start_disagreement_deg")
+    start = ("the gyro integrated with the linear estimate (paper eq. 13)"
+             + ("" if far is None else f", its field directions {far:.0f} deg off the measured ones (90th percentile)"))
+    if first_density is not None and prep is not None:
+        weights = (f"the gyro's guessed noise level started {1 / LOW_START_FACTOR:g}x below its guess "
+                   f"({np.rad2deg(prep.gyro_density):.3g} deg/s/sqrt(Hz)) and estimated by the solve")
+    elif prep is not None and prep.levels is not None and noise.GUESS in (prep.levels.gyro_source, prep.levels.mag_source):
+        weights = "the guessed noise levels estimated by the solve"
+    else:
+        weights = "the noise levels as measured" + ("" if prep is None or prep.levels is None else f" ({prep.levels.source})")
+    return f"{start}; {weights}; --gyro-noise with your gyro's noise density may help"
 
 
 def level_estimator(problem: JointProblem, prep: Prepared, lin: Linearisation):

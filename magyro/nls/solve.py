@@ -165,6 +165,34 @@ def check_axis_mapping(K0: np.ndarray, prep: Prepared) -> None:
             + "), which is noise, not a wrong axis mapping; record longer, turning about every axis", prep.analysis) from None
 
 
+FAR_START_DEG = 45.0      # the start's field directions this far off the measured ones (90th percentile): far
+LOW_START_FACTOR = 0.01   # a guessed gyro level starts this much below its guess when the start is far
+
+
+def start_disagreement_deg(prep: Prepared, grid: Grid, lin: Linearisation) -> float:
+    """How far the start is from what the magnetometer says: the angle (deg, 90th percentile over the nodes on a
+    magnetometer sample) between the field direction the start's attitudes predict (C_m^i^T m^i) and the measured
+    one (the ellipsoid's calibrated field). The gyro integrated with the linear estimate drifts: at 25 Hz that
+    scale comes out 2-5 % high, and a hand that keeps rolling the phone over takes it 70-150 deg off within two
+    minutes (issue 38's iPhones); BROAD's trials and the slower phone sessions stay within 20 deg."""
+    measured = prep.field_m[grid.node_mag_index][grid.node_on_sample]
+    predicted = np.einsum("nji,j->ni", lin.C_m_i_nominal[grid.node_on_sample], lin.m0)
+    cos = np.sum(predicted * measured, axis=1) / np.linalg.norm(measured, axis=1)
+    return float(np.percentile(np.rad2deg(np.arccos(np.clip(cos, -1.0, 1.0))), 90)) if len(cos) else 0.0
+
+
+def first_gyro_density(prep: Prepared, disagreement_deg: float) -> float | None:
+    """The gyro level the first pass is weighted with, when not the prepared one: a guessed level (the solve
+    estimates it, `magyro.nls.variance`) starts LOW_START_FACTOR below its guess when the start is far from the
+    magnetometer. Tightly tied to the gyro, the attitudes follow the gyro's calibration as a whole, which the
+    magnetometer pulls back (the iPhone replica: 21-27 iterations, every gyro parameter within 1.4 std of the
+    truth); loosely tied, each is pulled on its own towards the nearest field direction and IPOPT's steps shrink
+    to 1e-3..1e-6 (the iteration limit). The variance components then raise the level to what the residuals say."""
+    if prep.levels is None or prep.levels.gyro_source != noise.GUESS or not disagreement_deg > FAR_START_DEG:
+        return None
+    return prep.gyro_density * LOW_START_FACTOR
+
+
 def build_problem(prep: Prepared, options: Options, method: NLS,
                   search_lag: bool = True) -> tuple[Grid, Linearisation, JointProblem]:
     """The grid, the linearisation point and the problem of a prepared session."""
@@ -308,12 +336,13 @@ def ipopt_stop(problem: JointProblem, method: NLS) -> dict:
             **({"ipopt.acceptable_obj_change_tol": 1e-8, "ipopt.acceptable_iter": 1} if problem.hand else {})}
 
 
+CONVERGED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")   # IPOPT's statuses of a pass that ended where it should
 VARIANCE_TOLERANCE = 0.05   # estimated levels are settled when the last step moved each by less than this
 MAX_VARIANCE_PASSES = 12    # passes when the levels are estimated (each a warm start of a few iterations)
 
 
 def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, method: NLS,
-                 variance_step=None, start: Solution | None = None) -> Solution:
+                 variance_step=None, start: Solution | None = None, first_density: float | None = None) -> Solution:
     """IPOPT, then warm re-solves: new time-offset look-up, re-weighted noise levels.
 
     With rests (or given levels) at most two re-solves, the magnetometer re-weighted by its residuals'
@@ -324,13 +353,15 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
     Where a hand moved the device and its velocity is to become a state (`NLS.hand_states`), the first pass is all
     this solve does (`Solution.hand_found`; its next levels in `following`). From a `start` (that solve's
     `following`, its x laid out for this problem, and the weights `start.acc_weight`) the passes go on from there,
-    counting its iterations and time."""
+    counting its iterations and time. `first_density`: the gyro level of the first pass, when not the prepared one
+    (`first_gyro_density`). A pass that did not converge ends the passes: its point is no place to re-weight from
+    (re-weighted there, the iPhone replica's magnetometer level grew 657x and the next step met a singular matrix)."""
     stop = ipopt_stop(problem, method)
     # a first pass that may find a hand need not be polished: the states' solve goes on from it
     loose = ({**stop, **LOOSE_STOP} if start is None and problem.accelerometer and not problem.hand
              and method.hand_states else None)
     if start is None:
-        sigma_mag, density, tau0 = prep.sigma_mag, prep.gyro_density, lin.time_offset_s
+        sigma_mag, density, tau0 = prep.sigma_mag, first_density or prep.gyro_density, lin.time_offset_s
         acc_weight = None if lin.accelerometer is None else lin.accelerometer.weight
         x, seconds, iterations = np.zeros(problem.n_x), 0.0, 0
     else:
@@ -349,6 +380,9 @@ def solve_passes(problem: JointProblem, prep: Prepared, lin: Linearisation, meth
             seconds += time.perf_counter() - t0
             iterations += int(stats["iter_count"])
             stats["iter_count"] = iterations
+            if stats["return_status"] not in CONVERGED:
+                return Solution(x, p, sigma_mag, tau0, stats, n_pass, seconds, None, density, step, step is None,
+                                acc_weight)
             tau = float(problem.physical_function(x[: problem.n_theta], problem.globals_of(p))[5].full().item())
             r = residual_matrix(problem, x, p) if (method.reweight_noise or estimating or problem.accelerometer) else None
             if estimating:

@@ -102,7 +102,12 @@ def variance_components(problem: JointProblem, prep: Prepared, lin: Linearisatio
     x_dm = ca.DM(x)
     p = problem_parameters(problem, prep, lin, sigma_mag, tau0_s, density)
     H = problem.hessian_function(x_dm, ca.DM(p))
-    inverse = inverse_on_pattern(reduce_hessian(H, problem.n_theta, problem.B), H)
+    try:
+        inverse = inverse_on_pattern(reduce_hessian(H, problem.n_theta, problem.B), H)
+    except np.linalg.LinAlgError:   # the information is singular here: no redundancy to measure a level with
+        return VarianceComponents(1.0, 1.0, float("nan"), float("nan"))
+    if not np.all(np.isfinite(inverse)):
+        return VarianceComponents(1.0, 1.0, float("nan"), float("nan"))
     gyro = gyro_residuals(r, grid.stride)[grid.gyro_linked]
     mag = magnetometer_residuals(r, grid.stride)[grid.sample_mask]
     gyro_factor = mag_factor = 1.0
