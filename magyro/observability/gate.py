@@ -219,13 +219,15 @@ def accuracy_shortfalls(std, bounds) -> list[tuple[str, float, float, str]]:
     return out
 
 
-def accuracy_summary(shortfalls: list[tuple[str, float, float, str]], what: str = "predicted one-sigma") -> str:
-    """The shortfalls in one sentence, worst first, with the motion to add."""
+def accuracy_summary(shortfalls: list[tuple[str, float, float, str]], what: str = "predicted one-sigma",
+                     motion_advice: bool = True) -> str:
+    """The shortfalls in one sentence, worst first, with the motion to add (unless `motion_advice` is False: where
+    the motion is not what is missing)."""
     worst = sorted(shortfalls, key=lambda s: -s[1] / s[2])
     parts = [f"{name} {significant(value)} (bound {significant(bound)})" for name, value, bound, _ in worst[:4]]
     advice = list(dict.fromkeys(a for *_, a in worst))
     more = f" and {len(worst) - 4} more" if len(worst) > 4 else ""
-    return f"{what} {', '.join(parts)}{more}; {'; '.join(advice[:2])}"
+    return f"{what} {', '.join(parts)}{more}" + (f"; {'; '.join(advice[:2])}" if motion_advice else "")
 
 
 REFUSAL_BOUND_NOTE = ("this is the refusal bound, Options.max_std or --max-std-*; the accuracy targets, --targets, "

@@ -27,7 +27,9 @@ from magyro.front.prepare import Prepared
 from magyro.nls.information import predicted_std_and_disturbance
 from magyro.nls.method import NLS
 from magyro.nls.solve import default_stride
-from magyro.observability.gate import accuracy_gate
+from magyro.errors import InputError
+from magyro.front.causes import turning
+from magyro.observability.gate import accuracy_gate, accuracy_shortfalls, accuracy_summary
 from magyro.options import Options, StdBounds
 from magyro.result.parts import Std
 from magyro.session import Session
@@ -51,12 +53,14 @@ def prediction_stride(session: Session, method=None) -> int:
     return int(stride or default_stride(session))
 
 
-def predicted_accuracy(prep: Prepared, options: Options, method=None) -> PredictedAccuracy:
-    """The one-sigma this recording can give, before solving (the module docstring says what it counts)."""
+def predicted_accuracy(prep: Prepared, options: Options, method=None, steady_field: bool = False) -> PredictedAccuracy:
+    """The one-sigma this recording can give, before solving (the module docstring says what it counts);
+    `steady_field`: as if the field held still along the path (the room's wander not counted)."""
     stride = prediction_stride(prep.session, method)
     plain = NLS(stride=stride, compiled=method.compiled if isinstance(method, NLS) else True)
     start = time.perf_counter()
-    room = not (isinstance(method, NLS) and method.hard_iron_walk is not None)   # a walking hard iron is the wander
+    room = not steady_field and not (isinstance(method, NLS) and method.hard_iron_walk is not None)   # a walking
+    # hard iron is the wander
     std, disturbance = predicted_std_and_disturbance(prep, dataclasses.replace(options, accelerometer=False), plain,
                                                      room=room)
     return PredictedAccuracy(std, disturbance, stride, time.perf_counter() - start)
@@ -109,5 +113,36 @@ def excitation_gate(prep: Prepared, options: Options, method=None) -> list[str]:
     if not bounded(options) or not prediction_needed(prep, options):
         return []
     predicted = predicted_accuracy(prep, options, method)
+    fault = field_fault(prep, options, method, predicted)
+    if fault is not None and not options.force:
+        raise fault
     wander = None if predicted.disturbance is None else predicted.disturbance.std_fraction
     return accuracy_gate(predicted.std, options, wander)
+
+
+FIELD_FAULT_WANDER = 0.01   # a wander below 1 % of the field is never named as the field's fault
+
+
+def field_fault(prep: Prepared, options: Options, method, predicted: PredictedAccuracy) -> InputError | None:
+    """InputError (exit 2) when the room's field, not the motion, is why the predicted one-sigma is past the bound:
+    the device turned far about every axis (`magyro.front.causes.Turning.every_axis`, as for a cloud that fits no
+    ellipsoid) and the same prediction in a steady field is within the bounds. An x-IMU tumbled through the whole
+    sphere in a field that wanders by 7 % was told to turn more about its z axis (issue 38); a motion is only
+    asked for where more motion would help. None otherwise (the motion's verdict stands)."""
+    wander = None if predicted.disturbance is None else predicted.disturbance.std_fraction
+    shortfalls = accuracy_shortfalls(predicted.std, options.max_std)
+    if not shortfalls or wander is None or not wander > FIELD_FAULT_WANDER:
+        return None
+    bias = prep.rests.gyro_mean_rad_s if prep.rests is not None else None
+    motion = turning(prep.session, bias)
+    if not motion.every_axis:
+        return None
+    if accuracy_shortfalls(predicted_accuracy(prep, options, method, steady_field=True).std, options.max_std):
+        return None
+    return InputError(
+        f"the field is not the same along the path: it wanders by {100 * wander:.1f} % of its size (iron, steel or a "
+        f"magnet near the device, or the device moved near iron), which leaves {accuracy_summary(shortfalls, motion_advice=False)}; the "
+        f"motion is not what is missing: the gyro says the device turned "
+        f"{', '.join(f'{x:.0f}' for x in motion.turn_deg)} deg about its three principal axes, and in a steady field "
+        f"the same motion would be within the bounds; record away from iron, steel furniture and magnets, turning "
+        f"the device in place (--force solves anyway, its std counting the wander)")
