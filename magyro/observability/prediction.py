@@ -30,6 +30,7 @@ from magyro.nls.solve import default_stride
 from magyro.errors import InputError
 from magyro.front.causes import turning
 from magyro.observability.gate import accuracy_gate, accuracy_shortfalls, accuracy_summary
+from magyro.observability.report import SPHERE_BANDS, SPHERE_SECTORS, sphere_cell
 from magyro.options import Options, StdBounds
 from magyro.result.parts import Std
 from magyro.session import Session
@@ -121,12 +122,14 @@ def excitation_gate(prep: Prepared, options: Options, method=None) -> list[str]:
 
 
 FIELD_FAULT_WANDER = 0.01   # a wander below 1 % of the field is never named as the field's fault
+FIELD_FAULT_SPHERE = 0.75   # ... nor one over a motion whose field directions visit less of the sphere's cells: more
+                            # of the sphere averages a wander out (the x-io Fusion example's quarter sphere, 2.9 %)
 
 
 def field_fault(prep: Prepared, options: Options, method, predicted: PredictedAccuracy) -> InputError | None:
     """InputError (exit 2) when the room's field, not the motion, is why the predicted one-sigma is past the bound:
     the device turned far about every axis (`magyro.front.causes.Turning.every_axis`, as for a cloud that fits no
-    ellipsoid) and the same prediction in a steady field is within the bounds. An x-IMU tumbled through the whole
+    ellipsoid), its field directions visited most of the sphere, and the same prediction in a steady field is within the bounds. An x-IMU tumbled through the whole
     sphere in a field that wanders by 7 % was told to turn more about its z axis (issue 38); a motion is only
     asked for where more motion would help. None otherwise (the motion's verdict stands)."""
     wander = None if predicted.disturbance is None else predicted.disturbance.std_fraction
@@ -135,7 +138,8 @@ def field_fault(prep: Prepared, options: Options, method, predicted: PredictedAc
         return None
     bias = prep.rests.gyro_mean_rad_s if prep.rests is not None else None
     motion = turning(prep.session, bias)
-    if not motion.every_axis:
+    cells = np.unique(sphere_cell(prep.field_m)).size / (SPHERE_BANDS * SPHERE_SECTORS)
+    if not (motion.every_axis and cells >= FIELD_FAULT_SPHERE):
         return None
     if accuracy_shortfalls(predicted_accuracy(prep, options, method, steady_field=True).std, options.max_std):
         return None
