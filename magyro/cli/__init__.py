@@ -32,7 +32,8 @@ from magyro.cli.simulation import montecarlo, plan_command, simulate  # noqa: E4
 from magyro.cli.solve import solve  # noqa: E402
 
 def _deprecations_on_one_line() -> None:
-    """An old spelling still read (magyro.targets.DeprecatedKeyWarning) shown as one plain line on stderr."""
+    """An old spelling still read (magyro.targets.DeprecatedKeyWarning) shown as one plain line on stderr; only while
+    the command runs (`main`): importing magyro.cli changes nothing of the caller's warnings."""
     import warnings
 
     from magyro.targets import DeprecatedKeyWarning
@@ -47,8 +48,6 @@ def _deprecations_on_one_line() -> None:
 
     warnings.showwarning = show
 
-
-_deprecations_on_one_line()
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, help="Gyroscope calibration via the magnetometer (Wu & Pei), with the accelerometer in the same least squares when the session has one.")
 
@@ -76,7 +75,11 @@ app.command("plan", cls=Command)(as_written(plan_command))
 
 
 def main():
-    app()
+    import warnings
+
+    with warnings.catch_warnings():   # the one-line deprecations while the command runs, the caller's settings after
+        _deprecations_on_one_line()
+        app()
 
 
 if __name__ == "__main__":

@@ -81,15 +81,22 @@ def measured_disturbance(problem: JointProblem, theta, g, info_inv: np.ndarray, 
     return disturbance_from_magnitude(session.t_mag_s, e, G, cov, window_s)
 
 
+def window_means(t_s: np.ndarray, x: np.ndarray, window_s: float) -> np.ndarray:
+    """The means of x (N,) or (N, k) over consecutive windows of `window_s` from the first sample; empty windows
+    (holes) left out."""
+    window = np.floor((t_s - t_s[0]) / window_s).astype(int)
+    count = np.bincount(window)
+    held = count > 0
+    columns = np.asarray(x, dtype=float).reshape(len(t_s), -1)
+    means = np.stack([np.bincount(window, columns[:, a]) for a in range(columns.shape[1])], 1)[held] / count[held, None]
+    return means.reshape(-1) if np.ndim(x) == 1 else means
+
+
 def disturbance_from_magnitude(t_mag_s: np.ndarray, e: np.ndarray, G: np.ndarray, cov: np.ndarray,
                                window_s: float = WINDOW_S) -> FieldDisturbance:
     """sigma and T from the calibrated field's magnitude less one, `e` per sample, its gradient `G` with respect to
     the magnetometer's corrections and their covariance `cov` (either method's parametrisation)."""
-    window = np.floor((t_mag_s - t_mag_s[0]) / window_s).astype(int)
-    count = np.bincount(window)
-    held = count > 0
-    e_w = (np.bincount(window, e) / np.maximum(count, 1))[held]
-    G_w = np.stack([np.bincount(window, G[:, a]) for a in range(G.shape[1])], 1)[held] / count[held, None]
+    e_w, G_w = window_means(t_mag_s, e, window_s), window_means(t_mag_s, G, window_s)
     e_w, G_w = e_w - e_w.mean(), G_w - G_w.mean(axis=0)
     n = len(e_w)
     lags = np.arange(1, max(2, min(MAX_LAG_WINDOWS, n // 4)))

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from magyro.front.prepare import Prepared
+from magyro.nls.disturbance import window_means
 from magyro.nls.information import predicted_std_and_disturbance
 from magyro.nls.method import NLS
 from magyro.nls.solve import default_stride
@@ -88,11 +89,7 @@ SCREEN_WINDOW_S = 0.2
 def field_wander_fraction(prep: Prepared) -> float:
     """RMS of the calibrated field's magnitude over SCREEN_WINDOW_S means, less one: the room's wander and the
     ellipsoid's error together (no less than the wander the prediction would measure)."""
-    t = prep.session.t_mag_s
-    magnitude = np.linalg.norm(prep.field_m, axis=1)
-    window = np.floor((t - t[0]) / SCREEN_WINDOW_S).astype(int)
-    count = np.bincount(window)
-    means = (np.bincount(window, magnitude) / np.maximum(count, 1))[count > 0]
+    means = window_means(prep.session.t_mag_s, np.linalg.norm(prep.field_m, axis=1), SCREEN_WINDOW_S)
     return float(np.sqrt(np.mean((means - np.mean(means)) ** 2)) / np.mean(means))
 
 
