@@ -11,6 +11,8 @@
   `guess_column_map`, `parse_column_map`, `parse_file_column_map`: which column is which (`magyro.io.csv_columns`);
   `import_preset`, `PRESETS`: the Sensor Logger and phyphox exports, `convert_csv`: `magyro import csv`
   (`magyro.io.csv_presets`).
+- `import_dataflash`, `convert_dataflash`: ArduPilot DataFlash logs (.bin with pymavlink, Mission Planner's
+  .log and .mat exports; `magyro.io.dataflash`).
 - `trim`, `cut`, `decimate`: a session cut in time or rate (`magyro.io.cutting`).
 - `write_text_atomically`, `write_atomically`: outputs that are whole or absent;
   `check_outputs(inputs, outputs)`: before any work, an output that is an input (or another
@@ -41,6 +43,7 @@ _EXPORTS = {
     "import_preset": "csv_presets", "PRESETS": "csv_presets", "convert_csv": "csv_presets",
     "import_ulog": "ulog", "convert_ulog": "ulog",
     "import_rosbag": "rosbag", "convert_rosbag": "rosbag",
+    "import_dataflash": "dataflash", "convert_dataflash": "dataflash",
 }
 
 __all__ = [  # = list(_EXPORTS), spelled out for linters
@@ -50,6 +53,7 @@ __all__ = [  # = list(_EXPORTS), spelled out for linters
     "broad_movement_span", "convert_broad", "BROAD_CITATION", "BROAD_LICENSE", "import_csv",
     "guess_column_map", "parse_column_map", "import_csv_files", "parse_file_column_map", "import_preset",
     "PRESETS", "convert_csv", "import_ulog", "convert_ulog", "import_rosbag", "convert_rosbag",
+    "import_dataflash", "convert_dataflash",
 ]
 
 if TYPE_CHECKING:
