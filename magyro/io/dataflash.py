@@ -171,7 +171,8 @@ def raw_magnetometer_uT(path: Path, tables: LogTables, name: str, rows: dict, in
     else:
         motor_note = "motor compensation MOX..Z subtracted"
     matrix = soft_iron_matrix(params, instance)
-    corrected = (logged_mG - motor) @ np.linalg.inv(matrix).T
+    identity = np.array_equal(matrix, np.eye(3))   # no product then: the logged numbers pass unchanged
+    corrected = (logged_mG - motor) if identity else (logged_mG - motor) @ np.linalg.inv(matrix).T
     offsets = _vector(path, name, rows, "Ofs", required=False)
     if offsets is not None:
         distinct = np.unique(offsets, axis=0)
@@ -183,7 +184,7 @@ def raw_magnetometer_uT(path: Path, tables: LogTables, name: str, rows: dict, in
                         f"MAG messages have no Ofs columns")
     scale = params.get(_param_name("COMPASS_SCALE", instance), 0.0) or 1.0
     raw = (corrected - offsets) / scale
-    matrix_note = ("soft-iron matrix identity (no COMPASS_DIA/ODI)" if np.allclose(matrix, np.eye(3))
+    matrix_note = ("soft-iron matrix identity (no COMPASS_DIA/ODI)" if identity
                    else f"soft-iron matrix of COMPASS_DIA/ODI inverted: {np.round(matrix, 4).tolist()}")
     note = (f"raw = M^-1 (Mag - MO) - Ofs{' divided by COMPASS_SCALE ' + str(scale) if scale != 1.0 else ''}: "
             f"{offsets_note}; {motor_note}; {matrix_note}; {unit} * {MAG_UNITS_TO_UT[unit]:g} = uT")
