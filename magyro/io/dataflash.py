@@ -1,5 +1,6 @@
 """Importing ArduPilot DataFlash logs: `.bin` (with pymavlink, `pip install 'magyro[dataflash]'`), Mission
-Planner's text `.log` and its MATLAB `.mat` export (`magyro.io.dataflash_read` reads each into columns).
+Planner's text `.log` and its MATLAB `.mat` export (`magyro.io.dataflash_read` reads each into columns), and the
+InertialNav text zips of autopilot logs (IMU.txt, MAG.txt, ATT.txt; `magyro.io.dataflash_zip`).
 
 What a session gets, for the IMU and compass instances chosen (`imu`, `mag`: the `I` column of modern logs,
 else the messages IMU/IMU2/IMU3 and MAG/MAG2/MAG3 of older ones):
@@ -263,7 +264,7 @@ def _metadata(path, tables, imu_name, imu, mag_name, mag, mag_note, origin, scal
     metadata = {
         "source": str(path),
         "dataflash_file": path.name,
-        "imported_from": (f"ArduPilot {tables.kind}: gyro{' and accelerometer' if with_acc else ''} "
+        "imported_from": (f"{tables.kind}: gyro{' and accelerometer' if with_acc else ''} "
                           f"{imu_name}{_instance_text('IMU', imu_name, imu)} ({n_imu} samples), magnetometer "
                           f"{mag_name}{_instance_text('MAG', mag_name, mag)} ({n_mag} samples)"
                           + (f", reference attitude ATT ({len(att[0])} samples)" if att is not None else

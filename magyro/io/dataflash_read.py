@@ -1,6 +1,6 @@
 """Reading the messages of an ArduPilot DataFlash log into columns: `.bin` (pymavlink's DFReader, after
 `dataflash_frames.check_framing`), `.log` (Mission Planner's text export) and `.mat` (Mission Planner's MATLAB
-export, scipy.io.loadmat).
+export, scipy.io.loadmat); the InertialNav text zips (IMU.txt, MAG.txt, ATT.txt) by `magyro.io.dataflash_zip`.
 
 Each reader returns a `LogTables`: for every message name of `WANTED` the log has, its columns as numpy arrays
 (strings stay strings), the parameters (PARM Name -> Value, the last value logged) and what the reader knows of
@@ -41,6 +41,9 @@ def read_log(path: Path) -> LogTables:
         head = f.read(128)
     if head.startswith(b"\xa3\x95"):
         return read_bin(path)
+    if head.startswith(b"PK\x03\x04"):
+        from magyro.io.dataflash_zip import read_inertialnav_zip
+        return read_inertialnav_zip(path)
     if path.suffix.lower() == ".mat" or head.startswith(b"MATLAB"):
         return read_mat(path)
     if path.suffix.lower() == ".bin":
