@@ -329,3 +329,67 @@ def test_the_arduplane_testlog2_mat_imports_with_its_learned_offsets_removed(tmp
     norm_uT = np.linalg.norm(s.mag, axis=1)
     assert 39.0 < norm_uT.min() < 40.5 and 82.0 < norm_uT.max() < 83.0
     assert "INS_GYROFFS_Y = 0.086" in s.metadata["dataflash_gyro_offsets_applied"]
+
+
+# --------------------------------------------------------------------------- an autopilot on the ground, a quad in yaw
+
+
+def ground_then_flight(seed: int = 5):
+    """A 50 Hz gyro and 10 Hz compass still for 120 s as an autopilot on the ground is (x-axis noise bursts
+    of +-1.3 deg/s alternating in sign, a bias creeping 0.2 deg/s, one 3.5 uT compass spike), then turning."""
+    from magyro.session import Session
+
+    rng = np.random.default_rng(seed)
+    t_s = np.arange(0.0, 150.0, 0.02)
+    gyro_deg_s = rng.normal(0.0, 0.018, (len(t_s), 3)) + np.outer(t_s.clip(max=120.0) / 120.0, [0.15, 0.2, 0.12])
+    for start_s in np.arange(5.0, 115.0, 10.0):                       # a burst a second long every 10 s
+        burst = (t_s >= start_s) & (t_s < start_s + 1.0)
+        gyro_deg_s[burst, 0] += 1.3 * (-1.0) ** np.arange(burst.sum())
+    moving = t_s >= 120.0
+    gyro_deg_s[moving] += 40.0 * np.sin(2 * np.pi * 0.2 * (t_s[moving, None] - 120.0) + [0.0, 1.0, 2.0])
+    t_mag_s = np.arange(0.05, 150.0, 0.1)
+    mag_uT = np.array([-36.4, 4.5, -46.6]) + rng.normal(0.0, 0.43, (len(t_mag_s), 3))
+    mag_uT[np.searchsorted(t_mag_s, 50.0), 2] += 3.5
+    turning_mag = t_mag_s >= 120.0
+    mag_uT[turning_mag] += 20.0 * np.sin(2 * np.pi * 0.2 * (t_mag_s[turning_mag, None] - 120.0) + [0.5, 1.5, 2.5])
+    return Session(t_gyro_s=t_s, gyro_rad_s=np.radians(gyro_deg_s), t_mag_s=t_mag_s, mag=mag_uT, mag_unit="uT")
+
+
+def test_a_vibrating_warming_autopilot_on_the_ground_is_found_at_rest_until_it_moves():
+    """Issue 38: the first half second's band alone ends such a rest within seconds; followed second by second
+    it lasts until the turning starts (120 s)."""
+    from magyro.front.differences import white_noise_std
+    from magyro.front.rests import find_rests, still_prefix_s
+
+    session = ground_then_flight()
+    first_test_s = still_prefix_s(session.t_gyro_s, session.gyro_rad_s, white_noise_std(session.gyro_rad_s))
+    assert first_test_s < 10.0, first_test_s          # what was found before
+    (start_s, end_s), = find_rests(session).segments_s[:1]
+    assert start_s == 0.05 and 118.0 < end_s <= 120.1, (start_s, end_s)
+
+
+def yaw_flight(tilt_swing_deg: float, seed: int = 7):
+    """A 50 Hz gyro turning in yaw (90 deg/s for 4 s of every 10) while swinging about x and y by
+    `tilt_swing_deg` at 0.5-0.7 Hz and back, as a multicopter's attitude control does."""
+    from magyro.session import Session
+
+    rng = np.random.default_rng(seed)
+    t_s = np.arange(0.0, 120.0, 0.02)
+    w = np.zeros((len(t_s), 3))
+    w[:, 2] = np.where((t_s % 10.0) < 4.0, np.radians(90.0), 0.0)
+    for k, f_hz in ((0, 0.5), (1, 0.7)):   # angle A sin(2 pi f t): rate A 2 pi f cos(2 pi f t)
+        w[:, k] = np.radians(tilt_swing_deg) * 2 * np.pi * f_hz * np.cos(2 * np.pi * f_hz * t_s)
+    w += rng.normal(0.0, np.radians(0.05), w.shape)
+    t_mag_s = np.arange(0.0, 120.0, 0.1)
+    return Session(t_gyro_s=t_s, gyro_rad_s=w, t_mag_s=t_mag_s, mag=rng.normal(0.0, 1.0, (len(t_mag_s), 3)))
+
+
+def test_turning_mostly_in_yaw_with_small_swings_is_named_and_large_tilts_are_not():
+    from magyro.front.causes import motion_error, turning
+
+    yaw = turning(yaw_flight(tilt_swing_deg=8.0))
+    assert yaw.mostly_one_axis and not yaw.every_axis and abs(yaw.net_main_axis[2]) > 0.99, yaw
+    message = str(motion_error(yaw))
+    assert "mostly about one axis, its z axis" in message, message
+    tumbling = turning(yaw_flight(tilt_swing_deg=60.0))
+    assert not tumbling.mostly_one_axis and motion_error(tumbling) is None, tumbling
