@@ -393,3 +393,43 @@ def test_turning_mostly_in_yaw_with_small_swings_is_named_and_large_tilts_are_no
     assert "mostly about one axis, its z axis" in message, message
     tumbling = turning(yaw_flight(tilt_swing_deg=60.0))
     assert not tumbling.mostly_one_axis and motion_error(tumbling) is None, tumbling
+
+
+# --------------------------------------------------------------------------- InertialNav's text zips
+
+
+def inertialnav_zip(path: Path, mag_scale: float, members=("IMU.txt", "MAG.txt", "ATT.txt")) -> dict:
+    """IMU.txt, MAG.txt (field + offsets, in 1/mag_scale gauss) and ATT.txt of 4 s at 50 Hz, zipped."""
+    import zipfile
+
+    rng = np.random.default_rng(11)
+    t_ms = 20.0 * np.arange(200)
+    imu = np.column_stack([t_ms, t_ms, rng.normal(0, 0.3, (200, 3)), rng.normal(0, 0.1, (200, 3)) + [0, 0, -9.8]])
+    field_G = rng.normal(0.0, 0.3, (200, 3)) + [0.2, 0.05, 0.4]
+    ofs = np.tile([0.01, -0.02, 0.03], (200, 1))
+    mag = np.column_stack([t_ms + 3, t_ms + 3, (field_G + ofs) * mag_scale, ofs * mag_scale])
+    att = np.column_stack([t_ms, t_ms, rng.normal(0, 5, (200, 3)), np.zeros((200, 2))])
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        for name, table in (("IMU.txt", imu), ("MAG.txt", mag), ("ATT.txt", att)):
+            if name in members:
+                z.writestr(name, "\n".join(" ".join(f"{v:.7e}" for v in row) for row in table) + "\n")
+    return {"gyro": imu[:, 2:5], "field_uT": field_G * 100.0}
+
+
+@pytest.mark.parametrize("mag_scale, unit", [(1.0, "gauss"), (1000.0, "milligauss")])
+def test_an_inertialnav_zip_reads_its_field_in_the_unit_its_size_says(tmp_path, mag_scale, unit):
+    from magyro.io import import_dataflash
+
+    path = tmp_path / "flight.zip"
+    written = inertialnav_zip(path, mag_scale)
+    s = import_dataflash(path)
+    np.testing.assert_allclose(s.gyro_rad_s, written["gyro"], rtol=1e-6)
+    np.testing.assert_allclose(s.mag, written["field_uT"], rtol=1e-5, atol=1e-4)
+    assert f"read as {unit}" in s.metadata["dataflash_notes"] and s.quat_wxyz is not None
+
+
+def test_an_inertialnav_zip_without_mag_txt_is_refused(tmp_path):
+    path = tmp_path / "no-mag.zip"
+    inertialnav_zip(path, 1000.0, members=("IMU.txt", "ATT.txt"))
+    message = refusal(run_clean("import", "dataflash", path, "-o", tmp_path / "o.parquet"), 2)
+    assert "no MAG.txt" in message and "IMU.txt" in message, message
