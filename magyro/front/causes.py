@@ -196,6 +196,9 @@ def cloud_error(session: Session, cloud_kind: str, cloud_message: str, bias_rad_
     analysis = analysis_of()
     gyro_note = "" if analysis.full_rank else f" Gyro parameters: {analysis.summary().rstrip('.')}."
     error = motion_error(motion, gyro_note, analysis)
+    if error is not None and motion.mostly_one_axis and cloud_kind == "planar":   # the cloud's word, then the axis
+        return ObservabilityError(f"the magnetometer readings lie in one plane (a circle of field directions): "
+                                  f"{error}", analysis)
     if error is not None:
         return error
     if cloud_kind == "hyperboloid":
