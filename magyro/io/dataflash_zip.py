@@ -11,7 +11,8 @@ The magnetometer's unit is not written: ArduPilot's are milligauss, but the PX4 
 gauss. It is decided from the size of the field: a median |mag - offset| under `MAX_GAUSS` is gauss, one of
 `MIN_MILLIGAUSS`-`MAX_MILLIGAUSS` milligauss (the Earth's field is 250-650 mG), anything else is refused; the
 metadata names the decision. A magnetometer repeated on the IMU's rows (the PX4 zips) keeps only the rows where it
-changed (a repeated reading is a held sample, not a new one); the count dropped is in the metadata.
+changed (a repeated reading there is a held sample, not a new one); the count dropped is in the metadata. A
+MAG.txt on its own stamps (the ArduPilot zips) keeps every row.
 Members are unpacked within the caps of `magyro.io.csv_zip` (a zip bomb never reaches memory).
 """
 from __future__ import annotations
@@ -78,7 +79,10 @@ def _numbers(local: Path, label: str, columns: tuple) -> dict:
 
 
 def _drop_held_magnetometer(tables: LogTables) -> None:
-    mag = tables.messages["MAG"]
+    """On the IMU's rows (the same stamps, as in the PX4 zips), a reading equal to the previous one is held."""
+    mag, imu = tables.messages["MAG"], tables.messages["IMU"]
+    if len(mag["TimeMS"]) != len(imu["TimeMS"]) or not np.array_equal(mag["TimeMS"], imu["TimeMS"]):
+        return   # its own stamps: every row is a sample (an integer reading may repeat)
     field = np.column_stack([mag[c] for c in ("MagX", "MagY", "MagZ")])
     keep = np.ones(len(field), dtype=bool)
     keep[1:] = np.any(field[1:] != field[:-1], axis=1)
