@@ -11,8 +11,6 @@
   `guess_column_map`, `parse_column_map`, `parse_file_column_map`: which column is which (`magyro.io.csv_columns`);
   `import_preset`, `PRESETS`: the Sensor Logger and phyphox exports, `convert_csv`: `magyro import csv`
   (`magyro.io.csv_presets`).
-- `import_dataflash`, `convert_dataflash`: ArduPilot DataFlash logs (.bin with pymavlink, Mission Planner's
-  .log and .mat exports; `magyro.io.dataflash`).
 - `trim`, `cut`, `decimate`: a session cut in time or rate (`magyro.io.cutting`).
 - `write_text_atomically`, `write_atomically`: outputs that are whole or absent;
   `check_outputs(inputs, outputs)`: before any work, an output that is an input (or another
