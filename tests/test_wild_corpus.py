@@ -26,6 +26,9 @@ IMPORTS = {   # name -> the `magyro import` arguments (the output added)
     "bennyjhui": ("csv", WILD / "bennyjhui", "--preset", "sensor-logger"),
     "phidgets-2013": ("rosbag", WILD / "imu_tools" / "imutools-2013-phidgets_imu_upside_down.bag"),
     "phidgets-2017": ("rosbag", WILD / "imu_tools" / "imutools-2017-phidgets_imu_upside_down.bag"),
+    "arduplane": ("dataflash", WILD / "inertialnav" / "TestLog2.mat"),       # ArduPlane, Mission Planner's .mat
+    "f450": ("dataflash", WILD / "inertialnav" / "f450_glitch_log.zip"),    # quadcopters: IMU.txt, MAG.txt, ATT.txt
+    "quad106": ("dataflash", WILD / "inertialnav" / "quad106.zip"),
 }
 RAZOR = WILD / "imu_tools" / "imutools-2013-sparkfun_razor.bag"   # normalised: `import` refuses it, the API reads it
 
@@ -142,3 +145,31 @@ def test_the_solves_screen_computes_the_prediction_wherever_observe_refuses(sess
     assert not accuracy_shortfalls(predicted_accuracy(prep, options).std, options.max_std)
     tightened = Options(max_std=dataclasses.replace(options.max_std, bias_deg_s=0.015))
     assert prediction_needed(prep, tightened)      # bounds of the user's own: always predicted
+
+
+def test_the_arduplane_still_on_the_ground_before_take_off_is_found_at_rest(sessions, tmp_path):
+    """TestLog2 (issue 38): ~184 s on the ground before take-off, its 50 Hz gyro with bursts of x-axis noise and a
+    bias creeping 0.2 deg/s as it warms, its compass with single 3 uT spikes; observe found 2.1 s of rest there.
+    Now the whole ground rest (the take-off is at 184.5-185 s); the flight (aerobatics) excites every parameter."""
+    import json
+
+    report = tmp_path / "observe.json"
+    result = run_clean("observe", sessions["arduplane"], "-o", report)
+    assert result.returncode == 0, result.stderr
+    rests = json.loads(report.read_text())["session"]["rests_s"]
+    start_s, end_s = rests[0]
+    assert start_s < 1.0 and 180.0 < end_s < 185.0, rests
+    assert run_clean("check", sessions["arduplane"]).returncode == 0
+
+
+@pytest.mark.parametrize("name", ["f450", "quad106"])
+def test_a_quadcopter_flying_mostly_in_yaw_is_told_so_not_that_its_magnetometer_is_dead(sessions, name):
+    """The quadcopters turn mostly about z (yaw) while their attitude control swings them by some degrees about x
+    and y; their magnetometers follow the heading (the F450's spreads 8.9 x its white noise). Before (issue 41)
+    the F450 was 'an axis dead or constant' (exit 2): its attitude swings added up to 1200-1500 deg about every
+    axis."""
+    message = refusal(run_clean("observe", sessions[name]), 3)
+    assert "mostly about one axis" in message and "its z axis" in message, message
+    assert "dead" not in message and "constant" not in message and "not a magnetometer" not in message
+    check = run_clean("check", sessions[name])
+    assert check.returncode == 0 and "dead" not in check.stdout, check.stdout

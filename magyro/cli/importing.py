@@ -1,4 +1,4 @@
-"""`magyro import broad|csv|ulog|rosbag`: recordings from other tools as session files."""
+"""`magyro import broad|csv|ulog|rosbag|dataflash`: recordings from other tools as session files."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,7 +8,7 @@ import typer
 
 from magyro.cli.common import Command, as_written, run_guarded
 
-import_app = typer.Typer(no_args_is_help=True, help="Convert recordings into session files: BROAD trials (broad), phone or logger CSV exports (csv), PX4 flight logs (ulog), ROS bags (rosbag).")
+import_app = typer.Typer(no_args_is_help=True, help="Convert recordings into session files: BROAD trials (broad), phone or logger CSV exports (csv), PX4 flight logs (ulog), ROS bags (rosbag), ArduPilot logs (dataflash).")
 
 
 @import_app.command("broad", cls=Command)
@@ -111,5 +111,30 @@ def import_rosbag_command(
         typer.echo(f"session written to {output}: {len(s.t_gyro_s)} gyro samples ({s.gyro_rate_hz:.1f} Hz) from "
                    f"{m['rosbag_imu_topic']}, {len(s.t_mag_s)} magnetometer samples ({s.mag_rate_hz:.1f} Hz, {s.mag_unit}) "
                    f"from {m['rosbag_mag_topic']}, {s.duration_s:.1f} s ({m['rosbag_ros_version']} bag, header stamps)")
+
+    run_guarded(action)
+
+
+@import_app.command("dataflash", cls=Command)
+@as_written
+def import_dataflash_command(
+    log: Path = typer.Argument(..., metavar="LOG", readable=False, help="An ArduPilot DataFlash log: .bin (with pymavlink), or Mission Planner's .log or .mat export."),
+    output: Path = typer.Option(..., "-o", "--output", readable=False, help="Session file to write (.parquet or .csv)."),
+    imu: int = typer.Option(0, "--imu", min=0, help="IMU instance (the I column, or IMU2/IMU3 in older logs), e.g. 1 for the second gyro."),
+    mag: int = typer.Option(0, "--mag", min=0, help="Compass instance (the I column, or MAG2/MAG3 in older logs)."),
+):
+    """An ArduPilot log: gyro (rad/s), raw magnetometer (logged minus the offsets in force, uT), accelerometer (m/s^2), ATT as the reference quaternion."""
+    from magyro.io.dataflash import convert_dataflash
+
+    def action():
+        s = convert_dataflash(log, output, imu=imu, mag=mag)
+        m = s.metadata
+        n_ref = 0 if s.t_quat_s is None else len(s.t_quat_s)
+        typer.echo(f"session written to {output}: {len(s.t_gyro_s)} gyro samples ({s.gyro_rate_hz:.1f} Hz) from "
+                   f"{m['dataflash_imu']}, {len(s.t_mag_s)} magnetometer samples ({s.mag_rate_hz:.1f} Hz, raw, uT) "
+                   f"from {m['dataflash_mag']}"
+                   + (f", {len(s.t_acc_s)} accelerometer samples (m/s^2)" if s.t_acc_s is not None else "")
+                   + f", {n_ref} reference quaternions (ATT), {s.duration_s:.1f} s")
+        typer.echo(f"autopilot gyro offsets: {m['dataflash_gyro_offsets_applied']}")
 
     run_guarded(action)

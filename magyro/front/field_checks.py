@@ -212,7 +212,7 @@ def cloud_fault(session: Session, keep: np.ndarray) -> list:
         kind = "hyperboloid"
     except (ellipsoid.InputError, np.linalg.LinAlgError):
         return []
-    fault = causes.magnetometer_fault(causes.turning(session), kind)
+    fault = causes.magnetometer_fault(causes.turning(session), kind, mag)
     if fault is None:
         return []
     return [Finding("field", "magnetometer", str(fault), ((float(session.t_mag_s[0]), float(session.t_mag_s[-1])),),

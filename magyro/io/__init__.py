@@ -41,6 +41,7 @@ _EXPORTS = {
     "import_preset": "csv_presets", "PRESETS": "csv_presets", "convert_csv": "csv_presets",
     "import_ulog": "ulog", "convert_ulog": "ulog",
     "import_rosbag": "rosbag", "convert_rosbag": "rosbag",
+    "import_dataflash": "dataflash", "convert_dataflash": "dataflash",
 }
 
 __all__ = [  # = list(_EXPORTS), spelled out for linters
@@ -50,6 +51,7 @@ __all__ = [  # = list(_EXPORTS), spelled out for linters
     "broad_movement_span", "convert_broad", "BROAD_CITATION", "BROAD_LICENSE", "import_csv",
     "guess_column_map", "parse_column_map", "import_csv_files", "parse_file_column_map", "import_preset",
     "PRESETS", "convert_csv", "import_ulog", "convert_ulog", "import_rosbag", "convert_rosbag",
+    "import_dataflash", "convert_dataflash",
 ]
 
 if TYPE_CHECKING:
