@@ -52,9 +52,11 @@ BURST_MIN_LONG = 3
 RESTAMP_QUANTILE = 0.1            # of the per-burst earliest arrivals: buffered samples arrive late, never early
 RESTAMP_WANDER_PERIODS = 1.0      # earliest arrivals wandering more than this off one line (or RESTAMP_WANDER_S):
 RESTAMP_WANDER_S = 0.005          #   drifting clocks ...
-RESTAMP_WINDOW_S = 5.0            # ... followed window by window
-RESTAMP_PASSES = 3
-RESTAMP_DRIFT_QUANTILE = 0.0      # within a window, once flattened: the lowest (a sample never arrives early)
+RESTAMP_WINDOW_S = 3.0            # ... followed window by window (5 s windows left a 68 ms wander 1 ms RMS off)
+RESTAMP_PASSES = 2
+RESTAMP_DRIFT_QUANTILE = 0.1      # within a window, once its slope is taken out: a low quantile (never early; robust to a
+                                  #   short burst, whose last line comes sooner after its sample)
+RESTAMP_LOWER_FITS = 2            # a window's slope: refitted this often on the arrivals at or below its line
 RESTAMP_TRUST_PERIODS = 3.0       # still wandering this much after that: no restamp can be trusted (exit 2)
 RESTAMP_MIN_BURSTS = 3            # a stretch with fewer bursts takes the period of the longest stretch, not its own
 RESTAMP_LOST_PERIODS = 2.0        # a long wait after which the earliest arrivals (against the index) are this much
@@ -172,6 +174,8 @@ def sensor_clock_and_rows(sensor: str, t: np.ndarray, x: np.ndarray):
         restamped, earliest, period, wander = restamp_segments(t, long, gaps, period)
         restamped, not_applied = increasing_or_why(t, restamped)
         findings.append(bursts_finding(sensor, t, dt, short, long, earliest, period, wander, stalls, not_applied))
+        if findings[-1].severity == "error":   # no restamp to trust: none applied (was: "ERROR bursts [repaired]")
+            restamped = None
         if len(gaps):
             findings.append(gaps_finding(sensor, t, gaps, period))
     else:
@@ -233,22 +237,55 @@ def restamp_from_index(t: np.ndarray, long: np.ndarray | None = None,
 
 
 def drifting_offset(t_start: np.ndarray, earliest: np.ndarray, k_start: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """The offset a(k) under the earliest arrivals: their RESTAMP_DRIFT_QUANTILE in windows of RESTAMP_WINDOW_S,
-    at each window's middle index, joined by straight lines (continued beyond the first and the last)."""
+    """The offset a(k) under the earliest arrivals, window by window (RESTAMP_WINDOW_S): in each, the arrivals less
+    their own line against k, their RESTAMP_DRIFT_QUANTILE put back on that line at the window's middle; joined by
+    straight lines, continued beyond the first and the last window with their own slopes. Before (issue 38), the
+    lowest arrival of 5 s windows taken as is: it sat a slope x half a window low where the clock turned, one short
+    last burst (its line comes sooner after its sample) pulled a window 4-6 ms down, and the slope between the
+    last two windows lagged a turning clock; on a board wandering 68 ms (magyro.studies.logger_stamps) the times
+    came out 4-7 ms off at the end and the gyro bias 5 std. A last window under half as long joins the one before."""
     window = np.floor((t_start - t_start[0]) / RESTAMP_WINDOW_S).astype(int)
-    anchors_k, anchors_a = [], []
+    if t_start[-1] - t_start[0] - window[-1] * RESTAMP_WINDOW_S < RESTAMP_WINDOW_S / 2:
+        window = np.minimum(window, max(window[-1] - 1, 0))   # a short last window joins the one before it
+    anchors_k, anchors_a, slopes = [], [], []
     for w in np.unique(window):
         inside = window == w
         if inside.sum() >= 3:
-            anchors_k.append(float(np.median(k_start[inside])))
-            anchors_a.append(float(np.quantile(earliest[inside], RESTAMP_DRIFT_QUANTILE)))
+            middle = float(np.median(k_start[inside]))
+            slope = slope_within(k_start, earliest, inside)
+            line = earliest[inside] - slope * (k_start[inside] - middle)
+            anchors_k.append(middle)
+            anchors_a.append(float(np.quantile(line, RESTAMP_DRIFT_QUANTILE)))
+            slopes.append(slope)
     if len(anchors_k) < 2:
         return np.full(len(k), float(np.quantile(earliest, RESTAMP_QUANTILE)))
-    slope_first = (anchors_a[1] - anchors_a[0]) / (anchors_k[1] - anchors_k[0])
-    slope_last = (anchors_a[-1] - anchors_a[-2]) / (anchors_k[-1] - anchors_k[-2])
-    anchors_a = [anchors_a[0] + slope_first * (k[0] - anchors_k[0])] + anchors_a + \
-                [anchors_a[-1] + slope_last * (k[-1] - anchors_k[-1])]
+    anchors_a = [anchors_a[0] + slopes[0] * (k[0] - anchors_k[0])] + anchors_a + \
+                [anchors_a[-1] + slopes[-1] * (k[-1] - anchors_k[-1])]
     return np.interp(k, [k[0]] + anchors_k + [k[-1]], anchors_a)
+
+
+def slope_within(k: np.ndarray, y: np.ndarray, inside: np.ndarray) -> float:
+    """The slope of the lower half of y against k over the rows `inside` (0 with fewer than 3): least squares on
+    them all, then RESTAMP_LOWER_FITS times on the half at or below the last line. Late arrivals are the outliers
+    (a stale burst is late, never early): the last partial burst of a board that sends every 0.25 s arrived 131 ms
+    late and tipped a plain least-squares slope enough to put the last second 70 ms off."""
+    kk, yy = k[inside], y[inside]
+    if len(kk) < 3:
+        return 0.0
+    slope = line_slope(kk, yy)
+    for _ in range(RESTAMP_LOWER_FITS):
+        residual = yy - slope * kk
+        lower = residual <= np.median(residual)
+        if lower.sum() < 3:
+            break
+        slope = line_slope(kk[lower], yy[lower])
+    return slope
+
+
+def line_slope(x: np.ndarray, y: np.ndarray) -> float:
+    """The least-squares slope of y against x."""
+    xx = x - x.mean()
+    return float(np.dot(xx, y - y.mean()) / np.dot(xx, xx))
 
 
 def index_slope_s(t: np.ndarray) -> float:
@@ -329,7 +366,8 @@ def stalls_text(t, dt, stalls) -> str:
 def bursts_finding(sensor, t, dt, short, long, earliest, period, wander=0.0, stalls=(), not_applied="") -> Finding:
     wait = float(np.median(dt[long]))
     drift = float(np.quantile(earliest, 0.9) - np.quantile(earliest, RESTAMP_QUANTILE))
-    lost = drift > RESTAMP_TRUST_PERIODS * period
+    early = float(np.quantile(earliest, RESTAMP_QUANTILE) - np.min(earliest))   # a clock that jumps: one window
+    lost = max(drift, early) > RESTAMP_TRUST_PERIODS * period                   # follows it, its neighbours come early
     refused = lost or bool(not_applied)
     return Finding(
         "bursts", sensor,
@@ -341,7 +379,9 @@ def bursts_finding(sensor, t, dt, short, long, earliest, period, wander=0.0, sta
             f"clocks drift), so the restamp follows them {RESTAMP_WINDOW_S:g} s at a time" if wander and not lost
             else "") + (
             f"; even followed window by window ({RESTAMP_WINDOW_S:g} s), the earliest arrival per burst wanders by "
-            f"{drift * 1e3:.0f} ms: the {sensor}'s clock cannot be rebuilt from its sample index (samples missing, "
+            f"{drift * 1e3:.0f} ms" + (f" and one comes {early * 1e3:.0f} ms before the clock so fitted (taken after it "
+                                       "arrived)" if early > RESTAMP_TRUST_PERIODS * period else "") +
+            f": the {sensor}'s clock cannot be rebuilt from its sample index (samples missing, "
             "or a clock that jumps), so no restamp can be trusted" if lost else "") + stalls_text(t, dt, stalls) + (
             f"; the restamp cannot be applied: {not_applied}" if not_applied and not lost else ""),
         ((t[0], t[-1]),), "error" if refused else "warning",
@@ -353,7 +393,7 @@ def bursts_finding(sensor, t, dt, short, long, earliest, period, wander=0.0, sta
                                    "fitted, a from the earliest arrivals, following drifting clocks)",
                                    "the arrival stamps", "better: stamp on the sensor side")),
         numbers={"short_fraction": float(short.mean()), "wait_s": wait, "period_s": float(period),
-                 "earliest_arrival_spread_s": drift, "wander_off_one_line_s": wander, "stalls": len(stalls),
+                 "earliest_arrival_spread_s": drift, "earliest_arrival_early_s": early, "wander_off_one_line_s": wander, "stalls": len(stalls),
                  "restamp_applicable": not refused})
 
 
