@@ -10,7 +10,9 @@ A board (an MPU6050 read by a microcontroller) samples on its own clock and send
   a port opened, a board reset); nothing is lost, the samples of the stall arrive in one long burst after it;
 - a stale first burst: `stale_first_samples` samples already waiting when the logger starts arrive at once;
 - a drifting board clock (`board_times`): the k-th sample is taken at t0 + k P (1 + ppm) + a slow wander, in
-  the host's (the session's) time.
+  the host's (the session's) time;
+- lost lines (`lost_lines`, `serial_logged`): a share of the lines garbled on the link and dropped by the
+  logger, one here and one there, with no long wait to show it: the row index is no longer the sample counter.
 
     t_arrival_s = arrival_stamps(t_true_s, SerialLogger(stale_first_samples=12), seed=1)
     session, t_true_s = serial_logged(session, SerialLogger(), seed=1, ppm=450.0, wander_s=0.068)
@@ -95,15 +97,19 @@ def board_times(t_s: np.ndarray, ppm: float = 0.0, wander_s: float = 0.0, seed: 
 
 
 def serial_logged(session: Session, logger: SerialLogger = SerialLogger(), seed: int = 0, ppm: float = 0.0,
-                  wander_s: float = 0.0) -> tuple[Session, np.ndarray]:
+                  wander_s: float = 0.0, lost_lines: float = 0.0) -> tuple[Session, np.ndarray]:
     """(the session with its gyro sampled by a drifting board and stamped on arrival by `logger`, the true times of
     those gyro samples). The gyro is read at `board_times` of its stamps (interpolated; samples past the end are
-    left out); the magnetometer and the rest are kept as they are."""
+    left out); a share `lost_lines` of the lines is then dropped at random; the magnetometer and the rest are
+    kept as they are."""
     t_taken_s = board_times(session.t_gyro_s, ppm, wander_s, seed)
     inside = t_taken_s <= session.t_gyro_s[-1]
     t_taken_s = t_taken_s[inside]
     gyro = np.column_stack([np.interp(t_taken_s, session.t_gyro_s, session.gyro_rad_s[:, i]) for i in range(3)])
     stamps_s = arrival_stamps(t_taken_s, logger, seed)
+    if lost_lines:
+        keep = np.random.default_rng([seed, 39]).random(len(stamps_s)) >= lost_lines
+        stamps_s, gyro, t_taken_s = stamps_s[keep], gyro[keep], t_taken_s[keep]
     logged = replace(session, t_gyro_s=stamps_s, gyro_rad_s=gyro, t_acc_s=None, acc_m_s2=None,
                      source=f"{session.source} serial-logged (seed {seed})")
     return logged, t_taken_s
