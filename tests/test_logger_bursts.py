@@ -111,6 +111,21 @@ def test_lost_data_stays_a_gap_and_each_side_is_restamped():
     assert np.ptp(repaired.t_gyro_s - t_true_s[~lost]) < 0.005
 
 
+def test_a_stale_burst_from_before_a_board_reset_is_cut_off_by_a_gap():
+    """The port's opening reset the board: 12 samples from before the reset, taken 0.3 s before the restarted
+    board's first, wait in the buffer. Their index says nothing of that 0.3 s: a gap, not a stall."""
+    logged, t_true_s, _ = variant(1, SerialLogger())
+    t_board_s = t_true_s.copy()
+    t_board_s[:12] -= 0.3
+    t_s = arrival_stamps(t_board_s, SerialLogger(stale_first_samples=12, stale_wait_s=0.05), seed=1)
+    repaired, check = repair_recording(replace(logged, t_gyro_s=t_s))
+    bursts = check.find("bursts", "gyro")[0]
+    assert bursts.repaired and bursts.numbers["stalls"] == 0, check.table()
+    (a, b), = check.gyro_holes_s
+    assert (a, b) == (repaired.t_gyro_s[11], repaired.t_gyro_s[12]), (a, b)   # between the stale and the rest
+    assert np.ptp(repaired.t_gyro_s[12:] - t_board_s[12:]) < 0.005
+
+
 def test_a_clock_the_index_cannot_rebuild_is_refused_naming_why(tmp_path):
     """5 % of the lines lost on the link, one here and one there: the row index is no longer the sample counter."""
     logged, _, _ = variant(1, SerialLogger(), lost_lines=0.05)
