@@ -168,10 +168,11 @@ def test_the_linear_estimate_with_every_window_across_a_hole_is_an_ideal_gyro_wi
 
 @pytest.mark.slow
 def test_observe_of_unrepaired_bursts_prints_no_warning(tmp_path):
+    """Was numpy's 'Mean of empty slice' (the linear estimate without a window)."""
     logged, _, _ = variant(2)
     path = tmp_path / "bursty.parquet"
     write_session(logged, path)
-    result = run_clean("observe", path, "--no-repair", "restamp")   # every window crosses a hole: was 'Mean of empty slice'
+    result = run_clean("observe", path, "--no-repair", "restamp")   # every window crosses a hole
     assert result.returncode in (0, 3), result.stdout + result.stderr
 
 

@@ -54,8 +54,8 @@ RESTAMP_WANDER_PERIODS = 1.0      # earliest arrivals wandering more than this o
 RESTAMP_WANDER_S = 0.005          #   drifting clocks ...
 RESTAMP_WINDOW_S = 3.0            # ... followed window by window (5 s windows left a 68 ms wander 1 ms RMS off)
 RESTAMP_PASSES = 2
-RESTAMP_DRIFT_QUANTILE = 0.1      # within a window, once its slope is taken out: a low quantile (never early; robust to a
-                                  #   short burst, whose last line comes sooner after its sample)
+RESTAMP_DRIFT_QUANTILE = 0.1      # within a window, once its slope is taken out: a low quantile (never early;
+                                  #   robust to a short burst, whose last line comes sooner after its sample)
 RESTAMP_LOWER_FITS = 2            # a window's slope: refitted this often on the arrivals at or below its line
 RESTAMP_TRUST_PERIODS = 3.0       # still wandering this much after that: no restamp can be trusted (exit 2)
 RESTAMP_MIN_BURSTS = 3            # a stretch with fewer bursts takes the period of the longest stretch, not its own
@@ -168,7 +168,7 @@ def sensor_clock_and_rows(sensor: str, t: np.ndarray, x: np.ndarray):
     if bursty:
         jitter = float("nan")
         waits = np.flatnonzero(dt > GAP_PERIODS * np.median(dt[long]))   # data lost between bursts, or a stall
-        period = clock_period_s(t, long, waits)
+        period = clock_period_s(t, waits)
         gaps = lost_data_waits(t, long, waits, period)
         stalls = np.setdiff1d(waits, gaps)
         restamped, earliest, period, wander = restamp_segments(t, long, gaps, period)
@@ -209,9 +209,9 @@ def restamp_from_index(t: np.ndarray, long: np.ndarray | None = None,
     off one line (s; 0 when they do not and a is one number)): b the least-squares slope of the
     stamps against the sample index; a from a low quantile of each burst's earliest arrival (buffered samples
     arrive late, never early). When the two clocks drift (the earliest arrivals wander along the line by more
-    than RESTAMP_WANDER_PERIODS periods), a(k) follows them: the low quantile of every RESTAMP_WINDOW_S of bursts,
-    joined by straight lines. `long` marks the intervals that end a burst (default: > 3 mean periods); `period_s`,
-    when given, is b (a stretch too short to carry its own period: one burst's slope is its 2 ms spacing)."""
+    than RESTAMP_WANDER_PERIODS periods), a(k) follows them window by window (`drifting_offset`). `long` marks the
+    intervals that end a burst (default: > 3 mean periods); `period_s`, when given, is b (a stretch too short to
+    carry its own period: one burst's slope is its 2 ms spacing)."""
     n = len(t)
     if n < 3:
         return t.copy(), np.zeros(1), float(t[-1] - t[0]) if n == 2 else float("nan"), 0.0
@@ -294,7 +294,7 @@ def index_slope_s(t: np.ndarray) -> float:
     return float(np.dot(k, t - float(np.mean(t))) / np.dot(k, k))
 
 
-def clock_period_s(t: np.ndarray, long: np.ndarray, waits: np.ndarray) -> float:
+def clock_period_s(t: np.ndarray, waits: np.ndarray) -> float:
     """The sample period of a bursty clock: `index_slope_s` of the longest stretch between the long `waits`."""
     bounds = np.concatenate([[0], waits + 1, [len(t)]])
     a, b = max(zip(bounds[:-1], bounds[1:]), key=lambda ab: ab[1] - ab[0])
@@ -379,8 +379,8 @@ def bursts_finding(sensor, t, dt, short, long, earliest, period, wander=0.0, sta
             f"clocks drift), so the restamp follows them {RESTAMP_WINDOW_S:g} s at a time" if wander and not lost
             else "") + (
             f"; even followed window by window ({RESTAMP_WINDOW_S:g} s), the earliest arrival per burst wanders by "
-            f"{drift * 1e3:.0f} ms" + (f" and one comes {early * 1e3:.0f} ms before the clock so fitted (taken after it "
-                                       "arrived)" if early > RESTAMP_TRUST_PERIODS * period else "") +
+            f"{drift * 1e3:.0f} ms" + (f" and one comes {early * 1e3:.0f} ms before the clock so fitted (taken "
+                                       "after it arrived)" if early > RESTAMP_TRUST_PERIODS * period else "") +
             f": the {sensor}'s clock cannot be rebuilt from its sample index (samples missing, "
             "or a clock that jumps), so no restamp can be trusted" if lost else "") + stalls_text(t, dt, stalls) + (
             f"; the restamp cannot be applied: {not_applied}" if not_applied and not lost else ""),
@@ -393,7 +393,8 @@ def bursts_finding(sensor, t, dt, short, long, earliest, period, wander=0.0, sta
                                    "fitted, a from the earliest arrivals, following drifting clocks)",
                                    "the arrival stamps", "better: stamp on the sensor side")),
         numbers={"short_fraction": float(short.mean()), "wait_s": wait, "period_s": float(period),
-                 "earliest_arrival_spread_s": drift, "earliest_arrival_early_s": early, "wander_off_one_line_s": wander, "stalls": len(stalls),
+                 "earliest_arrival_spread_s": drift, "earliest_arrival_early_s": early,
+                 "wander_off_one_line_s": wander, "stalls": len(stalls),
                  "restamp_applicable": not refused})
 
 
