@@ -167,13 +167,15 @@ def test_the_linear_estimate_with_every_window_across_a_hole_is_an_ideal_gyro_wi
 
 
 @pytest.mark.slow
-def test_observe_of_unrepaired_bursts_prints_no_warning(tmp_path):
-    """Was numpy's 'Mean of empty slice' (the linear estimate without a window)."""
+def test_observe_and_the_ekf_on_unrepaired_bursts_print_no_warning(tmp_path):
+    """Was numpy's 'Mean of empty slice' (the linear estimate without a window) in observe, solve and the EKF."""
     logged, _, _ = variant(2)
     path = tmp_path / "bursty.parquet"
     write_session(logged, path)
-    result = run_clean("observe", path, "--no-repair", "restamp")   # every window crosses a hole
-    assert result.returncode in (0, 3), result.stdout + result.stderr
+    observe = run_clean("observe", path, "--no-repair", "restamp")   # every window crosses a hole
+    assert observe.returncode == 3 and "warns of bursts" in observe.stdout, observe.stdout + observe.stderr
+    ekf = run_clean("solve", path, "--method", "ekf", "--no-repair", "restamp", "-o", tmp_path / "ekf.json")
+    assert ekf.returncode == 0 and "not repaired (--no-repair restamp)" in ekf.stdout, ekf.stdout + ekf.stderr
 
 
 # --------------------------------------------------------------------------- solved within 4 std
