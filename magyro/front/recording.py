@@ -45,7 +45,8 @@ from magyro.session import Session
 
 
 MIN_SAMPLES = 10                  # per sensor, to check anything at all
-BURST_SHORT_PERIODS = 0.25        # bursts: intervals this far below the mean period ...
+BURST_SHORT_PERIODS = 0.5         # bursts: intervals this far below the mean period (0.25 missed a 115200-baud
+                                  #   link's 4 ms lines at 99 Hz, 0.4 period: 1366 'gaps' instead) ...
 BURST_MIN_SHORT_FRACTION = 0.3    # ... make up this share of all intervals ...
 BURST_LONG_PERIODS = 3.0          # ... and the waits between bursts are longer than this
 BURST_MIN_LONG = 3
@@ -56,7 +57,7 @@ RESTAMP_WINDOW_S = 3.0            # ... followed window by window (5 s windows l
 RESTAMP_PASSES = 2
 RESTAMP_DRIFT_QUANTILE = 0.1      # within a window, once its slope is taken out: a low quantile (never early;
                                   #   robust to a short burst, whose last line comes sooner after its sample)
-RESTAMP_LOWER_FITS = 2            # a window's slope: refitted this often on the arrivals at or below its line
+RESTAMP_SLOPE_POINTS = 200        # a window's slope: the median pairwise slope of at most this many bursts
 RESTAMP_TRUST_PERIODS = 3.0       # still wandering this much after that: no restamp can be trusted (exit 2)
 RESTAMP_MIN_BURSTS = 3            # a stretch with fewer bursts takes the period of the longest stretch, not its own
 RESTAMP_LOST_PERIODS = 2.0        # a long wait after which the earliest arrivals (against the index) are this much
@@ -167,13 +168,14 @@ def sensor_clock_and_rows(sensor: str, t: np.ndarray, x: np.ndarray):
     findings, restamped = [], None
     if bursty:
         jitter = float("nan")
-        waits = np.flatnonzero(dt > GAP_PERIODS * np.median(dt[long]))   # data lost between bursts, or a stall
+        ends = ~short   # a burst ends at any interval that is not short: bursts of 2 wait under 3 periods
+        waits = np.flatnonzero(dt > GAP_PERIODS * np.median(dt[ends]))   # data lost between bursts, or a stall
         period = clock_period_s(t, waits)
-        gaps = lost_data_waits(t, long, waits, period)
+        gaps = lost_data_waits(t, ends, waits, period)
         stalls = np.setdiff1d(waits, gaps)
-        restamped, earliest, period, wander = restamp_segments(t, long, gaps, period)
+        restamped, earliest, period, wander = restamp_segments(t, ends, gaps, period)
         restamped, not_applied = increasing_or_why(t, restamped)
-        findings.append(bursts_finding(sensor, t, dt, short, long, earliest, period, wander, stalls, not_applied))
+        findings.append(bursts_finding(sensor, t, dt, short, ends, earliest, period, wander, stalls, not_applied))
         if findings[-1].severity == "error":   # no restamp to trust: none applied (was: "ERROR bursts [repaired]")
             restamped = None
         if len(gaps):
@@ -265,27 +267,18 @@ def drifting_offset(t_start: np.ndarray, earliest: np.ndarray, k_start: np.ndarr
 
 
 def slope_within(k: np.ndarray, y: np.ndarray, inside: np.ndarray) -> float:
-    """The slope of the lower half of y against k over the rows `inside` (0 with fewer than 3): least squares on
-    them all, then RESTAMP_LOWER_FITS times on the half at or below the last line. Late arrivals are the outliers
-    (a stale burst is late, never early): the last partial burst of a board that sends every 0.25 s arrived 131 ms
-    late and tipped a plain least-squares slope enough to put the last second 70 ms off."""
+    """The slope of y against k over the rows `inside`, robustly: the median of the slopes between every two of
+    them (Theil-Sen; at most RESTAMP_SLOPE_POINTS rows, evenly spread; 0 with fewer than 3). A burst off the others,
+    late (a stale one) or early (a partial last burst: fewer lines, its last one comes sooner after its sample),
+    tipped a least-squares slope, and the line continued from the last window put the last second 8-70 ms off."""
     kk, yy = k[inside], y[inside]
     if len(kk) < 3:
         return 0.0
-    slope = line_slope(kk, yy)
-    for _ in range(RESTAMP_LOWER_FITS):
-        residual = yy - slope * kk
-        lower = residual <= np.median(residual)
-        if lower.sum() < 3:
-            break
-        slope = line_slope(kk[lower], yy[lower])
-    return slope
-
-
-def line_slope(x: np.ndarray, y: np.ndarray) -> float:
-    """The least-squares slope of y against x."""
-    xx = x - x.mean()
-    return float(np.dot(xx, y - y.mean()) / np.dot(xx, xx))
+    if len(kk) > RESTAMP_SLOPE_POINTS:
+        pick = np.linspace(0, len(kk) - 1, RESTAMP_SLOPE_POINTS).round().astype(int)
+        kk, yy = kk[pick], yy[pick]
+    i, j = np.triu_indices(len(kk), 1)
+    return float(np.median((yy[j] - yy[i]) / (kk[j] - kk[i])))
 
 
 def index_slope_s(t: np.ndarray) -> float:
