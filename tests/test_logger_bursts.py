@@ -98,6 +98,22 @@ def test_a_stale_first_burst_a_stall_and_a_drifting_board_are_restamped_within_a
     assert np.ptp(error_s) < 0.005, np.ptp(error_s)   # 1.6-2.2 ms; before: the restamp was dropped (arrivals kept)
 
 
+@pytest.mark.parametrize("seed, logger, ppm, wander_s, stalls", [
+    (5, SerialLogger(line_spacing_s=0.004, latency_s=(0.002, 0.015), stale_first_samples=12), 450.0, 0.068, 1),
+    (6, SerialLogger(burst_samples=2, stalls=((10.0, 0.3), (25.0, 0.5), (40.0, 1.0))), -450.0, 0.03, 3),
+    (8, SerialLogger(burst_samples=5, stale_first_samples=12), 0.0, 0.15, 1),
+], ids=["slow-link-4-ms-lines", "bursts-of-2-three-stalls", "wander-150-ms"])
+def test_slow_links_short_bursts_and_large_wanders_are_restamped_within_a_few_ms(seed, logger, ppm, wander_s, stalls):
+    """A 115200-baud link's 4 ms lines at 99 Hz (0.4 period: was '1366 gaps, period 4 ms'); bursts of 2, whose waits
+    (1.8 periods) are not 'long' (was 28 ms off); a board wandering 150 ms."""
+    logged, t_true_s, _ = variant(seed, logger, ppm, wander_s)
+    repaired, check = repair_recording(logged)
+    bursts = check.find("bursts", "gyro")[0]
+    assert bursts.severity == "warning" and bursts.repaired and bursts.numbers["stalls"] == stalls, check.table()
+    assert not check.gyro_holes_s, check.table()
+    assert np.ptp(repaired.t_gyro_s - t_true_s) < 0.006, np.ptp(repaired.t_gyro_s - t_true_s)   # 0.5-4.6 ms
+
+
 def test_lost_data_stays_a_gap_and_each_side_is_restamped():
     logged, t_true_s, _ = variant(1)
     lost = (t_true_s > 20.0) & (t_true_s < 21.0)        # the host's buffer overflowed: a second of samples gone
