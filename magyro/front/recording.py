@@ -8,7 +8,9 @@ jitter and looks for:
 
 - `time_unit`   stamps that are not seconds (a mean period of 3.5 "s" is 3.5 ms);
 - `bursts`      host stamps of buffered data: most intervals far below the period,
-                then long waits (a serial logger stamping each sample on arrival);
+                then long waits (a serial logger stamping each sample on arrival); restamped
+                from the sample index through stalls (a long wait that lost nothing), or
+                refused with the reason (an error) when no restamp can be trusted;
 - `gaps`        intervals over GAP_PERIODS periods (dropped data), with their times;
 - `held`        rows repeating the previous row exactly (a slow sensor logged on a
                 faster clock by sample-and-hold);
@@ -70,7 +72,7 @@ HELD_MIN_ROWS, HELD_MIN_FRACTION, HELD_WARN_FRACTION = 10, 0.02, 0.5
 class Evidence:
     """What the detectors found, by sample index, for the repairs (magyro.front.repairs)."""
 
-    restamped: dict = field(default_factory=dict)   # sensor -> index-fitted times (bursty clocks only)
+    restamped: dict = field(default_factory=dict)   # sensor -> index-fitted times (bursty clocks that can be trusted)
     held: dict = field(default_factory=dict)        # sensor -> bool mask of rows repeating the previous row
     saturated: np.ndarray | None = None             # gyro rows with an axis at a saturation plateau
     spikes: np.ndarray | None = None                # magnetometer rows that are spikes
