@@ -175,9 +175,10 @@ def sensor_clock_and_rows(sensor: str, t: np.ndarray, x: np.ndarray):
         period = clock_period_s(t, waits)
         gaps = lost_data_waits(t, ends, waits, period)
         stalls = np.setdiff1d(waits, gaps)
-        restamped, earliest, period, wander = restamp_segments(t, ends, gaps, period)
+        restamped, earliest, period, wander, early = restamp_segments(t, ends, gaps, period)
         restamped, not_applied = increasing_or_why(t, restamped)
-        findings.append(bursts_finding(sensor, t, dt, short, ends, earliest, period, wander, stalls, not_applied))
+        findings.append(bursts_finding(sensor, t, dt, short, ends, earliest, period, wander, stalls, not_applied,
+                                       early))
         if findings[-1].severity == "error":   # no restamp to trust: none applied (was: "ERROR bursts [repaired]")
             restamped = None
         if len(gaps):
@@ -333,12 +334,13 @@ def increasing_or_why(t: np.ndarray, restamped: np.ndarray) -> tuple[np.ndarray 
 
 
 def restamp_segments(t: np.ndarray, long: np.ndarray, gaps: np.ndarray,
-                     period_s: float | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+                     period_s: float | None = None) -> tuple[np.ndarray, np.ndarray, float, float, float]:
     """`restamp_from_index` on each stretch between gaps (the index says nothing across lost data):
-    (times, earliest arrivals, the period of the longest stretch, the largest wander off one line). A stretch of
-    fewer than RESTAMP_MIN_BURSTS bursts (a stale burst between two gaps) takes `period_s`."""
+    (times, earliest arrivals, the period of the longest stretch, the largest wander off one line, the most any
+    burst but a stretch's first and last arrives before its fitted clock: `early_arrival_s`). A stretch of fewer
+    than RESTAMP_MIN_BURSTS bursts (a stale burst between two gaps) takes `period_s`."""
     bounds = np.concatenate([[0], gaps + 1, [len(t)]])
-    times, earliest, periods, wander = [], [], [], 0.0
+    times, earliest, periods, wander, early = [], [], [], 0.0, 0.0
     for a, b in zip(bounds[:-1], bounds[1:]):
         short = period_s is not None and np.sum(long[a:b - 1]) + 1 < RESTAMP_MIN_BURSTS
         fitted, first, period, off_line = restamp_from_index(t[a:b], long[a:b - 1], period_s if short else None)
@@ -346,7 +348,18 @@ def restamp_segments(t: np.ndarray, long: np.ndarray, gaps: np.ndarray,
         earliest.append(first)
         periods.append((b - a, period))
         wander = max(wander, off_line)
-    return np.concatenate(times), np.concatenate(earliest), float(max(periods)[1]), wander
+        early = max(early, early_arrival_s(first))
+    return np.concatenate(times), np.concatenate(earliest), float(max(periods)[1]), wander, early
+
+
+def early_arrival_s(earliest: np.ndarray) -> float:
+    """How far the earliest arrival of any burst but the first and the last comes before the low quantile of them
+    all (0 with fewer than 3 bursts). A clock that jumps does it: one window follows the jump and the bursts
+    beside it come 95 ms early (19 periods); legitimate bursts 0.4 period at most. The first and the last burst
+    are left out: a partial one (fewer lines on the link) comes up to (lines missing) x (line spacing) sooner."""
+    if len(earliest) < 3:
+        return 0.0
+    return max(float(np.quantile(earliest, RESTAMP_QUANTILE) - np.min(earliest[1:-1])), 0.0)
 
 
 def stalls_text(t, dt, stalls) -> str:
@@ -358,11 +371,11 @@ def stalls_text(t, dt, stalls) -> str:
             "sample: their samples came in the next bursts, and the restamp runs through them")
 
 
-def bursts_finding(sensor, t, dt, short, long, earliest, period, wander=0.0, stalls=(), not_applied="") -> Finding:
+def bursts_finding(sensor, t, dt, short, long, earliest, period, wander=0.0, stalls=(), not_applied="",
+                   early=0.0) -> Finding:
     wait = float(np.median(dt[long]))
     drift = float(np.quantile(earliest, 0.9) - np.quantile(earliest, RESTAMP_QUANTILE))
-    early = float(np.quantile(earliest, RESTAMP_QUANTILE) - np.min(earliest))   # a clock that jumps: one window
-    lost = max(drift, early) > RESTAMP_TRUST_PERIODS * period                   # follows it, its neighbours come early
+    lost = max(drift, early) > RESTAMP_TRUST_PERIODS * period   # early: a clock that jumps (`early_arrival_s`)
     refused = lost or bool(not_applied)
     return Finding(
         "bursts", sensor,
