@@ -26,9 +26,9 @@ class LinearGyroEstimate:
     K: np.ndarray      # 3x3, C_b^m K_g
     eps: np.ndarray    # (3,) rad/s, in the m frame
     rank: int          # rank of the stacked system
-    windows: int
+    windows: int       # windows used: those that cross a hole in either record are left out (0: an ideal gyro)
     time_offset_s: float = 0.0   # magnetometer lag used (searched by `with_time_offset`)
-    residual: float = 0.0        # RMS of the stacked residual
+    residual: float = 0.0        # RMS of the stacked residual (nan without windows)
 
 
 def linear_gyro_estimate(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s: float = DEFAULT_WINDOW_S,
@@ -45,7 +45,11 @@ def linear_gyro_estimate(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s: float
 
 def estimate_from_increments(dm: np.ndarray, int_M: np.ndarray, time_offset_s: float = 0.0,
                              unexcited: np.ndarray | None = None) -> LinearGyroEstimate:
-    """`linear_gyro_estimate` from the rows of eq. (13) (`windowed_increments`)."""
+    """`linear_gyro_estimate` from the rows of eq. (13) (`windowed_increments`). Without rows (every window crosses
+    a hole: host stamps in bursts left unrepaired) an ideal gyro, rank 0, residual nan."""
+    if len(dm) == 0:
+        return LinearGyroEstimate(K=np.eye(3), eps=np.zeros(3), rank=0, windows=0, time_offset_s=time_offset_s,
+                                  residual=float("nan"))
     A = int_M.reshape(-1, 12)
     b = dm.reshape(-1)
     # normal equations (12 x 12): a tall lstsq cost 40 ms a call in the lag search
@@ -83,6 +87,9 @@ def with_time_offset(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s: float = D
     def fit(offset):
         return linear_gyro_estimate(tg, yg, tm, fm, window_s, offset)
 
+    at_zero = fit(0.0)
+    if at_zero.windows == 0:   # every window crosses a hole: no residual to search a lag on
+        return linear_gyro_estimate(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s, 0.0)
     a, b = -MAX_TIME_OFFSET_S, MAX_TIME_OFFSET_S
     c, d = b - GOLDEN * (b - a), a + GOLDEN * (b - a)
     fc, fd = fit(c), fit(d)
@@ -95,7 +102,7 @@ def with_time_offset(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s: float = D
             a, c, fc = c, d, fd
             d = a + GOLDEN * (b - a)
             fd = fit(d)
-    best = min((fc, fd, fit(0.0)), key=lambda e: e.residual)
+    best = min((fc, fd, at_zero), key=lambda e: e.residual)
     return linear_gyro_estimate(t_gyro_s, gyro_rad_s, t_mag_s, field_m, window_s, best.time_offset_s)
 
 
@@ -125,7 +132,9 @@ def turning_residual(t_gyro_s, gyro_rad_s, t_mag_s, field_m, K, eps, time_offset
 
 
 def residual_of_increments(dm: np.ndarray, int_M: np.ndarray, K, eps) -> float:
-    """`turning_residual` from the rows of eq. (13)."""
+    """`turning_residual` from the rows of eq. (13); nan without rows."""
+    if len(dm) == 0:
+        return float("nan")
     theta = np.concatenate([np.asarray(K, dtype=float).reshape(-1, order="F"), np.asarray(eps, dtype=float)])
     return float(np.sqrt(np.mean((int_M.reshape(-1, 12) @ theta - dm.reshape(-1)) ** 2)))
 
@@ -142,5 +151,7 @@ def turning_misfit_ratio(session, K, eps, R, h, time_offset_s: float = 0.0, wind
     field_m = calibrated_field(np.asarray(R), h, session.mag)
     rows = windowed_increments(session.t_gyro_s, session.gyro_rad_s, np.asarray(session.t_mag_s) - time_offset_s,
                                field_m, window_s)   # once: the best fit and the calibration's misfit on the same rows
+    if len(rows[0]) == 0:   # every window crosses a hole: nothing to compare (the recording check names the holes)
+        return 1.0
     best = estimate_from_increments(*rows, time_offset_s).residual
     return residual_of_increments(*rows, K, eps) / best if best > 0 else 1.0

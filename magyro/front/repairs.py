@@ -4,8 +4,10 @@
     session, check = repair_recording(session, Repairs(drop_held=False))   # --no-repair held
 
 - `restamp_bursts`  a sensor whose stamps come in bursts (buffered data stamped on arrival)
-                    gets t_k = a + b k from its sample index, stretch by stretch between gaps;
-                    a regular clock with dropped samples is never restamped (holes stay holes);
+                    gets t_k = a(k) + b k from its sample index, stretch by stretch between gaps
+                    (lost data; a stall that lost nothing is run through); a regular clock with dropped
+                    samples is never restamped (holes stay holes); when the fitted times cannot be used
+                    the check's `bursts` finding says why (an error) and the stamps are kept;
 - `drop_held`       rows repeating the previous row are dropped, the first of each run kept
                     (only on a sensor the check found holding values);
 - `cut_saturation`  gyro rows on a saturation plateau are removed; the spans they leave are
@@ -45,10 +47,9 @@ def repair_recording(session: Session, repairs: Repairs | None = None) -> tuple[
     values = {"gyro": session.gyro_rad_s, "magnetometer": session.mag}
     keep = {sensor: np.ones(len(t), dtype=bool) for sensor, t in times.items()}
     if repairs.restamp_bursts:
-        for sensor, t in evidence.restamped.items():
-            if np.all(np.diff(t) > 0):
-                times[sensor] = t
-                fixed.add(("bursts", sensor))
+        for sensor, t in evidence.restamped.items():   # increasing: the check names why when it cannot restamp
+            times[sensor] = t
+            fixed.add(("bursts", sensor))
     if repairs.drop_spikes and evidence.spikes.any():
         keep["magnetometer"] &= ~evidence.spikes
         fixed.add(("spikes", "magnetometer"))
