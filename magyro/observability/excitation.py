@@ -32,7 +32,7 @@ from magyro.front.prepare import Prepared, moving_session, prepare
 from magyro.nls.method import NLS
 from magyro.observability.advice import weak_directions
 from magyro.observability.gate import (WELL_CONDITIONED, accuracy_shortfalls, ObservabilityAnalysis, cumulative_noise_matrix,
-                                       directional_rank, too_weak_reason)
+                                       directional_rank, holes_cause, too_weak_reason)
 from magyro.observability.prediction import field_fault, prediction_stride, predicted_accuracy  # noqa: F401  (kept importable here)
 from magyro.observability.gravity import observe_accelerometer
 from magyro.observability.matrix import cumulative_information, trapezoid_weights
@@ -81,7 +81,8 @@ def observe(session: Session, options: Options | None = None, targets: Targets |
     cov = coverage(s.t_gyro_s, rates, field_m, reference)
 
     std, prediction = predict(prep, analysis, options, method)
-    verdict, reason = judge(analysis, problem, std, targets, options.max_std, prediction.get("field_disturbance"))
+    verdict, reason = judge(analysis, problem, std, targets, options.max_std, prediction.get("field_disturbance"),
+                            holes_cause(s.t_gyro_s))
     weak, advice = weak_directions(analysis, verdict=verdict)
     if problem is not None and not any("all three" in a for a in advice):
         advice = ["Turn the device through large angles about all three of its axes, so that the field sweeps "
@@ -220,7 +221,8 @@ ROOM_LIMITS_ABOVE = 0.005   # a field that wanders by more than 0.5 % along the 
 
 
 def judge(analysis: ObservabilityAnalysis, ellipsoid_problem: str | None, std: Std | None,
-          targets: Targets, bounds: StdBounds = StdBounds(), disturbance: dict | None = None) -> tuple[str, str]:
+          targets: Targets, bounds: StdBounds = StdBounds(), disturbance: dict | None = None,
+          holes: str = "") -> tuple[str, str]:
     """The verdict and its reason in plain words: insufficient exactly when the solve would refuse the session."""
     if ellipsoid_problem is not None:
         return "insufficient", (f"{ellipsoid_problem}, so the magnetometer's soft/hard iron cannot be fitted; "
@@ -233,7 +235,7 @@ def judge(analysis: ObservabilityAnalysis, ellipsoid_problem: str | None, std: S
     shortfalls = accuracy_shortfalls(std, bounds)
     if shortfalls:
         wander = (disturbance or {}).get("std_fraction")
-        return "insufficient", f"{too_weak_reason(shortfalls, wander)} (magyro solve refuses it too)"
+        return "insufficient", f"{too_weak_reason(shortfalls, wander, holes)} (magyro solve refuses it too)"
     above, worst = [], []
     for label, values, unit, target in accuracy_rows(std, targets):
         v = float(np.max(values)) if np.all(np.isfinite(values)) else math.inf

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from magyro.observability.matrix import information_integral, trapezoid_weights
+from magyro.session import hole_steps
 from magyro.text import significant
 
 FLOOR_FACTOR = 10.0
@@ -246,14 +247,33 @@ def room_cause(wander_fraction: float | None) -> str:
             "from iron and magnets, or longer")
 
 
-def too_weak_reason(shortfalls: list[tuple[str, float, float, str]], wander_fraction: float | None = None) -> str:
+HOLES_NAMED_ABOVE = 0.2   # gyro holes over this share of the span are named among a refusal's causes
+
+
+def holes_cause(t_gyro_s) -> str:
+    """'; the gyro record has holes over x % of its span ...' when the holes (never integrated across) take a share
+    of the recording worth naming as a cause of a large std (a logger's bursts left unrepaired, `--no-repair
+    restamp`: the turning the gyro saw is cut into pieces the magnetometer cannot link), else ''."""
+    t = np.asarray(t_gyro_s, dtype=float)
+    if len(t) < 3 or not t[-1] > t[0]:
+        return ""
+    steps = np.diff(t)
+    share = float(np.sum(steps[hole_steps(t)]) / (t[-1] - t[0]))
+    if not share > HOLES_NAMED_ABOVE:
+        return ""
+    return (f"; the gyro record has holes over {100 * share:.0f} % of its span, which are never integrated across: "
+            "bursts of a logger left unrepaired (--no-repair restamp) or lost data; magyro check says which")
+
+
+def too_weak_reason(shortfalls: list[tuple[str, float, float, str]], wander_fraction: float | None = None,
+                    holes: str = "") -> str:
     """Why a motion is refused although it excites every gyro parameter: the words of `magyro observe`'s verdict and
-    of the solve's refusal alike, with the numbers, the motion to add and the room's share."""
+    of the solve's refusal alike, with the numbers, the motion to add, the room's share and the holes' (`holes_cause`)."""
     return ("all 12 gyro parameters are excited, but too weakly for a calibration worth having: "
-            + accuracy_summary(shortfalls) + room_cause(wander_fraction))
+            + accuracy_summary(shortfalls) + room_cause(wander_fraction) + holes)
 
 
-def accuracy_gate(std, options, wander_fraction: float | None = None) -> list[str]:
+def accuracy_gate(std, options, wander_fraction: float | None = None, holes: str = "") -> list[str]:
     """Refuse (ObservabilityError, exit 3) a motion that excites every parameter too weakly for `options.max_std`;
     with `options.force`, the shortfall comes back as a warning instead."""
     shortfalls = accuracy_shortfalls(std, options.max_std)
@@ -262,7 +282,7 @@ def accuracy_gate(std, options, wander_fraction: float | None = None) -> list[st
     if not options.force:
         from magyro.errors import ObservabilityError
 
-        raise ObservabilityError(f"insufficient excitation: {too_weak_reason(shortfalls, wander_fraction)} (magyro "
+        raise ObservabilityError(f"insufficient excitation: {too_weak_reason(shortfalls, wander_fraction, holes)} (magyro "
                                  f"observe says the same; --force solves anyway; {REFUSAL_BOUND_NOTE})")
     return [f"solved with --force although the motion is too weak: {accuracy_summary(shortfalls)}"
             f"{room_cause(wander_fraction)}"]

@@ -30,7 +30,7 @@ from magyro.nls.method import NLS
 from magyro.nls.solve import default_stride
 from magyro.errors import InputError
 from magyro.front.causes import turning
-from magyro.observability.gate import accuracy_gate, accuracy_shortfalls, accuracy_summary
+from magyro.observability.gate import accuracy_gate, accuracy_shortfalls, accuracy_summary, holes_cause
 from magyro.observability.report import SPHERE_BANDS, SPHERE_SECTORS, sphere_cell
 from magyro.options import Options, StdBounds
 from magyro.result.parts import Std
@@ -123,7 +123,7 @@ def excitation_gate(prep: Prepared, options: Options, method=None) -> list[str]:
     if fault is not None and not options.force:
         raise fault
     wander = None if predicted.disturbance is None else predicted.disturbance.std_fraction
-    return accuracy_gate(predicted.std, options, wander)
+    return accuracy_gate(predicted.std, options, wander, holes_cause(prep.session.t_gyro_s))
 
 
 FIELD_FAULT_WANDER = 0.01   # a wander below 1 % of the field is never named as the field's fault
