@@ -90,7 +90,7 @@ def broad_block(shipped_lag_s: float, text: str | None = None) -> str:
 def check_rules_block() -> str:
     from magyro.front import causes
     from magyro.front import field_checks as fc
-    from magyro.front import recording as rec
+    from magyro.front import recording as rec, restamp
     from magyro.front import signals as sig
     from magyro.front.findings import GAP_PERIODS
     from magyro.io.checks import MAX_PLAUSIBLE_STEP_S, MIN_PLAUSIBLE_STEP_S
@@ -105,8 +105,8 @@ def check_rules_block() -> str:
         f"- **bursts**: at least {100 * rec.BURST_MIN_SHORT_FRACTION:g} % of the intervals shorter than "
         f"{g(rec.BURST_SHORT_PERIODS)} period, and at least {rec.BURST_MIN_LONG} waits longer than "
         f"{g(rec.BURST_LONG_PERIODS)} periods. magyro restamps the sensor from its sample index; when the "
-        f"earliest arrival of each burst wanders more than {g(rec.RESTAMP_WANDER_PERIODS)} period (or "
-        f"{g(1e3 * rec.RESTAMP_WANDER_S)} ms) off one line, the two clocks drift and the restamp follows them, "
+        f"earliest arrival of each burst wanders more than {g(restamp.RESTAMP_WANDER_PERIODS)} period (or "
+        f"{g(1e3 * restamp.RESTAMP_WANDER_S)} ms) off one line, the two clocks drift and the restamp follows them, "
         f"{g(rec.RESTAMP_WINDOW_S)} s at a time; if they still wander by {g(rec.RESTAMP_TRUST_PERIODS)} periods, "
         "no restamp can be trusted (error, exit 2, naming the sensor's clock).",
         f"- **gaps**: an interval longer than {g(GAP_PERIODS)} periods. magyro never integrates the gyro across "

@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import contextlib
 import io
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from magyro.errors import InputError, one_line
+from magyro.io.dataflash_tables import LogTables  # noqa: F401  (importable from here too)
 
 DATAFLASH_INSTALL_HINT = "install it with pip install 'magyro[dataflash]' (or pip install pymavlink)"
 MESSAGES_PER_SENSOR = ("", "2", "3")   # IMU, IMU2, IMU3: the instances of logs older than the I column
@@ -24,14 +24,6 @@ TEXT_FIELDS = set("nNZa")              # DataFlash format characters that hold t
 MAX_TEXT_LINE_CHARS = 4096             # a Mission Planner .log line is < 300 characters
 
 
-@dataclass
-class LogTables:
-    kind: str                                      # "DataFlash .bin", "Mission Planner .log", ...
-    messages: dict = field(default_factory=dict)   # name -> {column -> array}
-    parameters: dict = field(default_factory=dict)
-    units: dict = field(default_factory=dict)      # name -> {column -> unit}, where the log says
-    counts: dict = field(default_factory=dict)     # name -> messages in the log (all types)
-    notes: list = field(default_factory=list)
 
 
 def read_log(path: Path) -> LogTables:

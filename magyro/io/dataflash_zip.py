@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from magyro.errors import InputError, one_line
-from magyro.io.dataflash_read import LogTables
+from magyro.io.dataflash_tables import LogTables
 
 MEMBERS = {"IMU": ("IMU.txt", ("TimeMS", "TimeMS2", "GyrX", "GyrY", "GyrZ", "AccX", "AccY", "AccZ")),
            "MAG": ("MAG.txt", ("TimeMS", "TimeMS2", "MagX", "MagY", "MagZ", "OfsX", "OfsY", "OfsZ")),
