@@ -108,16 +108,17 @@ def effective_std(x: np.ndarray) -> float:
 
 
 MIN_REST_FOR_NOISE_S = 2.0
-NOISE_BLOCK_S = 10.0   # a longer rest is measured block by block (its blocks' median): an autopilot still on the
-                       # ground for 184 s (ArduPlane TestLog2) warms up, its gyro bias creeping 0.2 deg/s, and a
-                       # compass spike or a burst of vibration falls in one block; measured whole, the creep read as
-                       # correlated noise (gyro 0.26 deg/s/sqrt(Hz) instead of 0.03). A rest of up to 10 s: as before
+NOISE_WHOLE_S = 30.0   # a rest longer than this is measured block by block (the median of its blocks): an autopilot
+NOISE_BLOCK_S = 10.0   # still on the ground for 184 s (ArduPlane TestLog2) warms up, its gyro bias creeping 0.2 deg/s,
+                       # and a compass spike or a burst of vibration falls in one block; measured whole, the creep
+                       # read as correlated noise (gyro 0.26 deg/s/sqrt(Hz) instead of 0.010). A rest of up to 30 s
+                       # (BROAD's are 3-18 s) is measured whole, as before
 
 
 def rest_blocks(segment_s: tuple[float, float]) -> list[tuple[float, float]]:
-    """The rest cut into equal blocks of at most NOISE_BLOCK_S (the whole rest when it is no longer)."""
+    """A rest longer than NOISE_WHOLE_S cut into equal blocks of at most NOISE_BLOCK_S; a shorter one whole."""
     a, b = segment_s
-    n = max(1, int(np.ceil((b - a) / NOISE_BLOCK_S - 1e-9)))
+    n = 1 if b - a <= NOISE_WHOLE_S else int(np.ceil((b - a) / NOISE_BLOCK_S - 1e-9))
     edges = np.linspace(a, b, n + 1)
     return [(float(lo), float(hi)) for lo, hi in zip(edges[:-1], edges[1:])]
 
