@@ -189,7 +189,10 @@ def check_blocks() -> dict[str, str]:
     g = doc_blocks.g
     return {"ekf-check": (f"field's turning over {g(DEFAULT_WINDOW_S)} s windows within {g(check.MAX_TURNING_MISFIT)}x "
                           f"of the plain linear fit (eq. 13), and dead-reckoned over {g(check.LONG_WINDOW_S)} s windows "
-                          f"within {g(check.MAX_LONG_TURNING_MISFIT)}x"),
+                          f"within {g(check.MAX_LONG_TURNING_MISFIT)}x; dead-reckoned over "
+                          + " and ".join(f"{g(w)} s" for w in check.DRIFT_WINDOWS_S)
+                          + f" windows it must miss the magnetometer's direction change no more than "
+                          f"{g(check.MAX_RAW_DRIFT)}x as much as the raw gyro does"),
             "ekf-rest-z": g(check.MAX_REST_Z)}
 
 
