@@ -216,8 +216,42 @@ def lag_shipped_block(record: dict) -> str:
             f"{record['date']})")
 
 
+CHECK_SIMS = "ekf-check-sims"   # benchmarks/ekf_check_sims.py --out
+
+
+def check_sims_block(record: dict) -> str:
+    """Per simulated case: how each method ended, and the dead reckoning of those that exited 0 (raw / calibrated)."""
+    cases: dict[str, dict[str, list]] = {}
+    for r in record["rows"]:
+        cases.setdefault(r["case"], {}).setdefault(r["method"], []).append(r)
+    methods = sorted({r["method"] for r in record["rows"]})
+
+    def cell(rows: list) -> str:
+        parts = []
+        for r in rows:
+            if r["exit"]:
+                parts.append(f"exit {r['exit']}")
+            else:
+                parts.append(f"0: {r['raw_rms_deg']:.2f} / {r['calibrated_rms_deg']:.2f}"
+                             + (" **worse**" if r["violation"] else ""))
+        return "; ".join(parts)
+
+    seeds = sorted({r["seed"] for r in record["rows"]})
+    head = (f"Measured on {record['date']} at commit `{record['commit']}` (`{record['command']}`), seeds "
+            f"{seeds[0]}-{seeds[-1]}; each cell: exit code, and for exit 0 the dead-reckoning RMS against the "
+            "reference, raw / calibrated, deg:\n\n")
+    rows = [[case] + [cell(per.get(m, [])) for m in methods] for case, per in cases.items()]
+    worse = {m: sum(1 for r in record["rows"] if r["method"] == m and r.get("violation")) for m in methods}
+    zero = {m: sum(1 for r in record["rows"] if r["method"] == m and r["exit"] == 0) for m in methods}
+    tail = "\n\n" + "; ".join(f"{m}: {worse[m]} of its {zero[m]} exits 0 dead-reckon worse than the raw gyro"
+                               for m in methods) + "."
+    return head + table(["case"] + methods, rows) + tail
+
+
 def blocks() -> dict[str, str]:
     out = check_blocks()
+    if has_record(CHECK_SIMS):
+        out["ekf-check-sims"] = check_sims_block(read_record(CHECK_SIMS))
     trials = read_record("broad-trials")
     out["ekf-lag-07"] = (f"{trials['trials']['07']['lag_ms']:.1f} ms (docs/real-data.md section 1, "
                          f"commit `{trials['commit']}`)")
