@@ -15,7 +15,7 @@ from magyro import ekf
 from magyro.errors import ObservabilityError, SolverError
 from magyro.options import Options
 from magyro.result.calibration import Calibration
-from magyro.result.check import MAX_RAW_DRIFT, check_result, raw_gyro_drift_ratio
+from magyro.result.check import MAX_RAW_DRIFT, check_result, raw_gyro_drift_ratios
 from magyro.studies.scenario import parse_problem, resolve_problem_path
 from magyro.studies.simulate import simulate
 
@@ -52,7 +52,7 @@ def test_a_calibration_worse_than_the_raw_gyro_is_refused_though_it_fits_the_tur
     field's direction change 1.5-2x as much as the raw gyro does, and that is exit 1 naming it."""
     session, truth = ideal_gyro
     wrong = truth_calibration(truth, K_g=np.diag([1.005, 1.0, 0.995]), bias_rad_s=np.deg2rad([0.1, 0.0, -0.07]))
-    assert raw_gyro_drift_ratio(session, wrong, 10.0) > 1.5 * MAX_RAW_DRIFT
+    assert raw_gyro_drift_ratios(session, wrong)[10.0] > 1.5 * MAX_RAW_DRIFT
     with pytest.raises(SolverError, match="raw gyro") as refused:
         check_result(wrong, session, "ekf")
     assert "dead-reckon worse than no calibration" in str(refused.value)
@@ -73,7 +73,7 @@ def test_a_recording_shorter_than_the_windows_has_no_drift_ratio(ideal_gyro):
     keep_g, keep_m = session.t_gyro_s < session.t_gyro_s[0] + 4.0, session.t_mag_s < session.t_gyro_s[0] + 4.0
     short = dataclasses.replace(session, t_gyro_s=session.t_gyro_s[keep_g], gyro_rad_s=session.gyro_rad_s[keep_g],
                                 t_mag_s=session.t_mag_s[keep_m], mag=session.mag[keep_m])
-    assert np.isnan(raw_gyro_drift_ratio(short, truth_calibration(truth), 5.0))
+    assert all(np.isnan(r) for r in raw_gyro_drift_ratios(short, truth_calibration(truth)).values())
 
 
 def test_ekf_refuses_a_step_1_that_does_not_converge():
