@@ -90,3 +90,24 @@ def test_ekf_refuses_a_step_1_that_does_not_converge():
     assert refused.value.exit_code == 3 and "--method nls" in str(refused.value)
     forced = magyro.calibrate(session, Options(force=True), method=ekf.EKF())
     assert any(w.startswith("solved with --force although the magnetometer's step 1") for w in forced.warnings)
+
+
+@pytest.mark.slow
+def test_estimated_magnetometer_moves_r_and_h_toward_the_truth_with_a_smaller_std():
+    """EKF(estimate_magnetometer=True): R and h are states, started at step 1's; on paper-table1 (part of the sphere,
+    where step 1 alone is weakest) the gyro adds information, so their std falls below step 1's, and the result
+    stays within 4 of it of the truth."""
+    from magyro.result.reported import UPPER
+    from magyro.studies.scenario import load_problem
+
+    session, truth = simulate(load_problem("paper-table1"), 1)
+    options = Options(estimate_time_offset=False)
+    two_step = magyro.calibrate(session, options, method=ekf.EKF())
+    joint = magyro.calibrate(session, options, method=ekf.EKF(estimate_magnetometer=True))
+    R_true, h_true = np.asarray(truth["magnetometer"]["R"]), np.asarray(truth["magnetometer"]["h"])
+    std_two = np.array([two_step.std.R[i][j] for i, j in UPPER] + list(two_step.std.h))
+    std_joint = np.array([joint.std.R[i][j] for i, j in UPPER] + list(joint.std.h))
+    error = np.array([(joint.R - R_true)[i, j] for i, j in UPPER] + list(joint.h - h_true))
+    assert np.all(std_joint < std_two), (std_joint, std_two)
+    assert np.all(np.abs(error / std_joint) < 4.0), error / std_joint
+    assert not np.allclose(joint.R, two_step.R, rtol=0, atol=1e-9)   # R moved from step 1's

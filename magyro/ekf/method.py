@@ -75,6 +75,9 @@ class EKF:
     consider_magnetometer: carry step 1's uncertainty into the std of the gyro
     parameters (Schmidt-Kalman consider states); off, the std is the filter's
     alone, as in the paper, which treats the calibrated magnetometer as exact.
+    estimate_magnetometer: R and h become states of the filter, started at step 1's with its covariance (the gyro
+    then constrains them, as in the least squares); off (the default), the paper's two steps, R and h as consider
+    states. Measured in docs/ekf.md ("Why the EKF's halves disagree").
     history_rows: about how many instants the history keeps.
     prior_inflation: the eq. (13) std is multiplied by this for the filter's prior.
     """
@@ -86,6 +89,7 @@ class EKF:
     history_rows: int = HISTORY_ROWS
     prior_inflation: float = PRIOR_INFLATION
     count_room: bool = True                # the std counts the room's field disturbance (magyro.ekf.room)
+    estimate_magnetometer: bool = False    # R and h as states of the filter (from step 1's), not consider states
 
     def calibrate(self, session: Session, options: Options | None = None) -> Calibration:
         """Calibrate gyro and magnetometer from one session (returns a `magyro.Calibration`)."""
@@ -125,6 +129,7 @@ class EKF:
             if final and room.std_fraction > 0.0:
                 filt.room = DisturbanceSensitivity(N_STATE)
             filt.innovations = [] if innovations else None
+            filt.estimate_magnetometer = self.estimate_magnetometer
             filt.likelihood_from_s, filt.likelihood_to_s = span[0] - lag_s, span[1] - lag_s
             run_filter(lagged(s, lag_s), filt)
             filter_runs.append(lag_s)
@@ -289,11 +294,11 @@ def assemble(filt: StreamingCalibrator, prep: Prepared, init: Initial, filter_s:
     ref = init.refinement
 
     def reported(cov_in: np.ndarray) -> np.ndarray:
-        cov = reported_covariance(K, eps, ref.R, ref.h, m, cov_in, C)
+        cov = reported_covariance(K, eps, filt.R, filt.h, m, cov_in, C)
         if lag is None:
             return cov
-        S = np.linalg.inv(ref.R)
-        g = lag.sensitivity(lambda lag_s, run: reported_vector(run.K, run.eps, S, ref.h, run.m, C, lag_s))
+        g = lag.sensitivity(lambda lag_s, run: reported_vector(run.K, run.eps, np.linalg.inv(run.R), run.h, run.m, C,
+                                                               lag_s))
         return with_lag(cov, lag.std_s, g)
 
     cov_white = filt.input_covariance(ref.covariance)
@@ -301,7 +306,7 @@ def assemble(filt: StreamingCalibrator, prep: Prepared, init: Initial, filter_s:
     std = std_white if omega is None else std_from_covariance(reported(cov_white + room_input_covariance(omega, filt.B)))
     n_samples = filt.gyro_samples + filt.mag_updates
     return Calibration(
-        K_g=Kg, bias_rad_s=C.T @ eps, K=K, eps_rad_s=eps, C_b_m=C, R=ref.R, h=ref.h,
+        K_g=Kg, bias_rad_s=C.T @ eps, K=K, eps_rad_s=eps, C_b_m=C, R=filt.R.copy(), h=filt.h.copy(),
         mag_unit=prep.session.mag_unit, field_i=m, std=std, std_white=None if omega is None else std_white,
         observability=Excitation.of(prep.analysis),
         solver=SolverReport("ekf", "done", int(n_samples), float(filter_s), float(total_s), {
