@@ -111,3 +111,19 @@ def test_estimated_magnetometer_moves_r_and_h_toward_the_truth_with_a_smaller_st
     assert np.all(std_joint < std_two), (std_joint, std_two)
     assert np.all(np.abs(error / std_joint) < 4.0), error / std_joint
     assert not np.allclose(joint.R, two_step.R, rtol=0, atol=1e-9)   # R moved from step 1's
+
+
+def test_the_lags_std_enters_the_std_of_the_parameters_it_moves():
+    """`with_lag`: the std of a parameter that moves g per second of lag grows to sqrt(std^2 + (std_lag g)^2); one
+    the lag does not move keeps its std (paper-table1 end to end: test_ekf's
+    test_lag_from_the_likelihood_lands_on_a_lagging_magnetometer_and_counts_in_the_std)."""
+    from magyro.ekf.uncertainty import with_lag
+
+    std_given_lag = np.array([0.007, 0.008, 0.5e-3])
+    g_per_s = np.array([-11.8, 0.0, 1.0])     # bias x moves -0.0118 deg/s per ms of lag (paper-table1); the lag itself 1
+    lag_std_s = 0.14e-3
+    cov = with_lag(np.diag(std_given_lag**2), lag_std_s, g_per_s)
+    expected = np.sqrt(std_given_lag**2 + (lag_std_s * g_per_s) ** 2)
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)), expected, rtol=1e-12)
+    assert np.sqrt(cov[1, 1]) == pytest.approx(std_given_lag[1], rel=1e-12)
+    assert cov[0, 2] == pytest.approx(lag_std_s**2 * g_per_s[0], rel=1e-12)   # correlated through the lag
