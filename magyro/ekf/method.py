@@ -5,7 +5,8 @@
 
     1. the shared front end (`magyro.front.prepare`): rests, noise, ellipsoid, unit check, gate
     2. step 1, the magnetometer: Gauss-Newton on the constant-norm condition,
-       from the ellipsoid (`magyro.ekf.magnetometer`)
+       from the ellipsoid (`magyro.ekf.magnetometer`); one that runs to its iteration limit is refused (exit 3,
+       `step1_convergence_verdict`): the filter would follow it, not the motion
     3. the filter's prior: eq. (13) on the calibrated field (`magyro.ekf.prior`)
     4. step 2, the error-state EKF fed the whole session in time order, the magnetometer stamps shifted
        by its lag and its noise re-weighted from the innovations (`magyro.ekf.streaming`,
@@ -17,7 +18,8 @@
        differences, like the least squares' `magyro.nls.information.propagate`:
        `magyro.ekf.uncertainty`), and the estimates over time
        (`magyro.ekf.history`, the paper's Fig. 3/6/7); the std counts the lag's uncertainty
-       (`magyro.ekf.uncertainty.with_lag`).
+       (`magyro.ekf.uncertainty.with_lag`). `magyro.calibrate` then judges it by the same result check as the
+       least squares' (`magyro.result.check`: the turning misfit, the raw gyro's drift, the rests).
 """
 from __future__ import annotations
 
