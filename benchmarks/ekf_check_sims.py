@@ -107,8 +107,8 @@ def main() -> None:
             for method in args.methods.split(","):
                 rows.append(run(case, seed, method))
                 r = rows[-1]
-                what = (f"exit 0, dead reckoning {r['raw_rms_deg']:.2f} raw / {r['calibrated_rms_deg']:.2f} calibrated deg"
-                        + ("  VIOLATION" if r["violation"] else "") if r["exit"] == 0 else
+                what = (f"exit 0, dead reckoning {r['raw_rms_deg']:.2f} raw / {r['calibrated_rms_deg']:.2f} "
+                        "calibrated deg" + ("  VIOLATION" if r["violation"] else "") if r["exit"] == 0 else
                         f"exit {r['exit']}: {r['message'][:110]}")
                 print(f"{case} seed {seed} {method}: {what}", flush=True)
     violations = [r for r in rows if r.get("violation")]
@@ -117,7 +117,8 @@ def main() -> None:
         root = Path(__file__).resolve().parents[1]
         done = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
         args.out.write_text(json.dumps({
-            "command": f"python benchmarks/ekf_check_sims.py --seeds {args.seeds} --methods {args.methods} --out {args.out}",
+            "command": (f"python benchmarks/ekf_check_sims.py --seeds {args.seeds} --methods {args.methods} "
+                        f"--out {args.out}"),
             "date": datetime.date.today().isoformat(), "commit": done.stdout.strip() or "unknown",
             "violations": len(violations), "runs": len(rows), "rows": rows}, indent=1, default=float) + "\n")
 

@@ -5,7 +5,8 @@
     python benchmarks/ekf_check_sims.py --seeds 0-2 --methods ekf,nls --out docs/numbers/ekf-check-sims.json
     magyro montecarlo paper-table1 --runs 20 --method ekf -o MC.json
     python benchmarks/ekf_table1_targets.py MC.json --out docs/numbers/ekf-table1-targets.json
-    python benchmarks/ekf_real_data.py --trials 02,07,09 --estimate-magnetometer --out docs/numbers/ekf-real-data-joint.json
+    python benchmarks/ekf_real_data.py --trials 02,07,09 --estimate-magnetometer \
+        --out docs/numbers/ekf-real-data-joint.json
     python docs/make_ekf_numbers.py [--check] [PAGE]       rewrite (or check) docs/ekf.md's blocks
 
 ekf-real-data.json: both methods on BROAD's trials and the wild recordings (exit codes, agreement in combined std,
@@ -283,9 +284,12 @@ def joint_split_block(two_step: dict, joint: dict) -> str:
         z = r.get("ekf_split_rms_z")
         return "a half refused" if z is None else f"{z:.2f}"
 
-    rows = [[name, cell(a.get(name)), cell(b.get(name)),
-             "-" if b[name].get("ekf_rms_deg") is None else f"{b[name]['raw_rms_deg']:.1f} / {b[name].get('nls_rms_deg', float('nan')):.1f} / {b[name]['ekf_rms_deg']:.1f}"]
-            for name in b]
+    def dead_reckoning(r):
+        if r.get("ekf_rms_deg") is None:
+            return "-"
+        return f"{r['raw_rms_deg']:.1f} / {r.get('nls_rms_deg', float('nan')):.1f} / {r['ekf_rms_deg']:.1f}"
+
+    rows = [[name, cell(a.get(name)), cell(b.get(name)), dead_reckoning(b[name])] for name in b]
     return (f"`{joint['command']}` ({joint['date']}, commit `{joint['commit']}`), beside the two steps' record:\n\n"
             + table(["trial", "split RMS z, two steps", "split RMS z, R and h as states",
                      "dead reckoning deg raw / NLS / EKF (R and h as states)"], rows))

@@ -120,7 +120,7 @@ def test_the_lags_std_enters_the_std_of_the_parameters_it_moves():
     from magyro.ekf.uncertainty import with_lag
 
     std_given_lag = np.array([0.007, 0.008, 0.5e-3])
-    g_per_s = np.array([-11.8, 0.0, 1.0])     # bias x moves -0.0118 deg/s per ms of lag (paper-table1); the lag itself 1
+    g_per_s = np.array([-11.8, 0.0, 1.0])     # bias x: -0.0118 deg/s per ms of lag (paper-table1); the lag itself: 1
     lag_std_s = 0.14e-3
     cov = with_lag(np.diag(std_given_lag**2), lag_std_s, g_per_s)
     expected = np.sqrt(std_given_lag**2 + (lag_std_s * g_per_s) ** 2)
