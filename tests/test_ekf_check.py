@@ -127,3 +127,19 @@ def test_the_lags_std_enters_the_std_of_the_parameters_it_moves():
     np.testing.assert_allclose(np.sqrt(np.diag(cov)), expected, rtol=1e-12)
     assert np.sqrt(cov[1, 1]) == pytest.approx(std_given_lag[1], rel=1e-12)
     assert cov[0, 2] == pytest.approx(lag_std_s**2 * g_per_s[0], rel=1e-12)   # correlated through the lag
+
+
+@pytest.mark.slow
+def test_ekf_std_past_its_bound_after_the_filter_is_refused_as_the_least_squares_is():
+    """phone-module in a field that wanders by 5 % over 2 s: the prediction before the filter (no room) gives a scale
+    std of at most about 12000 ppm, the filter's std, which counts the room, 13000-18000 ppm; with the bound at 13000
+    the EKF is refused after filtering (exit 3, `magyro.nls.run.solved_accuracy_gate`), as the least squares is."""
+    from magyro.studies.simulate import with_field_disturbance
+
+    problem = problem_with("phone-module")
+    session, _ = simulate(problem, 0)
+    session = with_field_disturbance(session, problem, 0.05, 2.0, 0)
+    options = Options()
+    options = dataclasses.replace(options, max_std=dataclasses.replace(options.max_std, scale_ppm=13000.0))
+    with pytest.raises(ObservabilityError, match="too uncertain to be worth having"):
+        magyro.calibrate(session, options, method=ekf.EKF())

@@ -44,6 +44,7 @@ from magyro.front import ellipsoid
 from magyro.front.initial import with_time_offset
 from magyro.front.noise import whitened_effective_scale
 from magyro.nls.diagnostics import rest_check
+from magyro.nls.run import solved_accuracy_gate
 from magyro.observability.gate import unexcited_directions
 from magyro.observability.prediction import excitation_gate
 from magyro.front.prepare import Prepared, prepare
@@ -156,6 +157,9 @@ class EKF:
         cal = assemble(filt, prep, init, filter_s, time.perf_counter() - t_start, tau, room, omega, sigma_mag, lag,
                        len(filter_runs), lag0)
         cal.warnings.extend(gate_warnings + warnings)
+        # the bounds on the solved std, as the least squares applies them: a std that counts a wandering room can
+        # be too large for the result to be worth having although the motion excites every parameter well
+        cal.warnings.extend(solved_accuracy_gate(cal, options))
         return cal, history
 
 
