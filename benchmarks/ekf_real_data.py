@@ -50,9 +50,9 @@ def agreement_z(ekf, nls) -> dict[str, float]:
     return {k: (a[k] - b[k]) / float(np.hypot(sa[k], sb[k])) for k in a}
 
 
-def run(name: str, session, truth: bool) -> dict:
+def run(name: str, session, truth: bool, ekf_method: EKF = EKF()) -> dict:
     nls = solve(session, None, False)
-    ekf = solve(session, EKF(), True)
+    ekf = solve(session, ekf_method, True)
     row = {"name": name, "nls_exit": nls["exit"], "ekf_exit": ekf["exit"],
            "nls_s": nls["seconds"], "ekf_s": ekf["seconds"]}
     for key, res in (("nls", nls), ("ekf", ekf)):
@@ -103,21 +103,26 @@ def main() -> None:
     ap.add_argument("--broad", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data" / "broad")
     ap.add_argument("--wild", type=Path)
     ap.add_argument("--out", type=Path)
+    ap.add_argument("--estimate-magnetometer", action="store_true",
+                    help="the EKF with R and h as states (EKF(estimate_magnetometer=True)), not the paper's two steps")
     args = ap.parse_args()
+    method = EKF(estimate_magnetometer=args.estimate_magnetometer)
     rows = []
     print("| session | nls exit | ekf exit | max \\|z\\| EKF vs NLS | EKF split RMS z | dead reckoning deg raw / nls / ekf "
           "| EKF refusal or warnings |\n|---|--:|--:|---|--:|---|---|", flush=True)
     for trial in filter(None, args.trials.split(",")):
         path = sorted(args.broad.glob(f"{trial}_*.mat"))[0]
-        rows.append(run(f"BROAD {trial}", import_broad_movement(path, MARGIN_S), truth=True))
+        rows.append(run(f"BROAD {trial}", import_broad_movement(path, MARGIN_S), truth=True, ekf_method=method))
         print(table_row(rows[-1]), flush=True)
     for path in sorted(args.wild.glob("*.parquet")) if args.wild else []:
-        rows.append(run(path.stem, load_session(path), truth=False))
+        rows.append(run(path.stem, load_session(path), truth=False, ekf_method=method))
         print(table_row(rows[-1]), flush=True)
     if args.out:
         root = Path(__file__).resolve().parents[1]
         done = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-        record = {"command": f"python benchmarks/ekf_real_data.py --wild DIR --out {args.out}",
+        flags = (f" --trials {args.trials}" if args.trials != DEFAULT_TRIALS else "") + (
+            " --estimate-magnetometer" if args.estimate_magnetometer else "") + (" --wild DIR" if args.wild else "")
+        record = {"command": f"python benchmarks/ekf_real_data.py{flags} --out {args.out}",
                   "date": datetime.date.today().isoformat(), "commit": done.stdout.strip() or "unknown", "rows": rows}
         args.out.write_text(json.dumps(record, indent=1, default=float) + "\n")
 

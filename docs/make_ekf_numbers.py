@@ -2,6 +2,11 @@
 
     python benchmarks/ekf_real_data.py --wild DIR --out docs/numbers/ekf-real-data.json   (BROAD and wild, minutes)
     python benchmarks/ekf_variants.py --out docs/numbers/ekf-variants.json                (simulations, minutes)
+    python benchmarks/ekf_check_sims.py --seeds 0-2 --methods ekf,nls --out docs/numbers/ekf-check-sims.json
+    magyro montecarlo paper-table1 --runs 20 --method ekf -o MC.json
+    python benchmarks/ekf_table1_targets.py MC.json --out docs/numbers/ekf-table1-targets.json
+    python benchmarks/ekf_real_data.py --trials 02,07,09 --estimate-magnetometer \
+        --out docs/numbers/ekf-real-data-joint.json
     python docs/make_ekf_numbers.py [--check] [PAGE]       rewrite (or check) docs/ekf.md's blocks
 
 ekf-real-data.json: both methods on BROAD's trials and the wild recordings (exit codes, agreement in combined std,
@@ -189,7 +194,10 @@ def check_blocks() -> dict[str, str]:
     g = doc_blocks.g
     return {"ekf-check": (f"field's turning over {g(DEFAULT_WINDOW_S)} s windows within {g(check.MAX_TURNING_MISFIT)}x "
                           f"of the plain linear fit (eq. 13), and dead-reckoned over {g(check.LONG_WINDOW_S)} s windows "
-                          f"within {g(check.MAX_LONG_TURNING_MISFIT)}x"),
+                          f"within {g(check.MAX_LONG_TURNING_MISFIT)}x; dead-reckoned over "
+                          + " and ".join(f"{g(w)} s" for w in check.DRIFT_WINDOWS_S)
+                          + f" windows it must miss the magnetometer's direction change no more than "
+                          f"{g(check.MAX_RAW_DRIFT)}x as much as the raw gyro does"),
             "ekf-rest-z": g(check.MAX_REST_Z)}
 
 
@@ -213,8 +221,88 @@ def lag_shipped_block(record: dict) -> str:
             f"{record['date']})")
 
 
+CHECK_SIMS = "ekf-check-sims"   # benchmarks/ekf_check_sims.py --out
+
+
+def check_sims_block(record: dict) -> str:
+    """Per simulated case: how each method ended, and the dead reckoning of those that exited 0 (raw / calibrated)."""
+    cases: dict[str, dict[str, list]] = {}
+    for r in record["rows"]:
+        cases.setdefault(r["case"], {}).setdefault(r["method"], []).append(r)
+    methods = sorted({r["method"] for r in record["rows"]})
+
+    def cell(rows: list) -> str:
+        parts = []
+        for r in rows:
+            if r["exit"]:
+                parts.append(f"exit {r['exit']}")
+            else:
+                parts.append(f"0: {r['raw_rms_deg']:.2f} / {r['calibrated_rms_deg']:.2f}"
+                             + (" **worse**" if r["violation"] else ""))
+        return "; ".join(parts)
+
+    seeds = sorted({r["seed"] for r in record["rows"]})
+    head = (f"Measured on {record['date']} at commit `{record['commit']}` (`{record['command']}`), seeds "
+            f"{seeds[0]}-{seeds[-1]}; each cell: exit code, and for exit 0 the dead-reckoning RMS against the "
+            "reference, raw / calibrated, deg:\n\n")
+    rows = [[case] + [cell(per.get(m, [])) for m in methods] for case, per in cases.items()]
+    worse = {m: sum(1 for r in record["rows"] if r["method"] == m and r.get("violation")) for m in methods}
+    zero = {m: sum(1 for r in record["rows"] if r["method"] == m and r["exit"] == 0) for m in methods}
+    tail = "\n\n" + "; ".join(f"{m}: {worse[m]} of its {zero[m]} exits 0 dead-reckon worse than the raw gyro"
+                               for m in methods) + "."
+    return head + table(["case"] + methods, rows) + tail
+
+
+TABLE1_TARGETS = "ekf-table1-targets"   # benchmarks/ekf_table1_targets.py --out
+JOINT = "ekf-real-data-joint"            # benchmarks/ekf_real_data.py --estimate-magnetometer --out
+
+
+def table1_targets_block(record: dict) -> str:
+    """Issue 38's Table I targets: the worst error over 3 sigma per parameter group and the bias std over the CRLB."""
+    rows = record["parameters"]
+    worst = max(rows, key=lambda k: rows[k]["over_three_sigma"])
+    bias = ", ".join(f"{v:.2f}" for v in record["bias_std_over_crlb"])
+    return (f"Over {record['succeeded']} of {record['runs']} seeds (`{record['command']}`, {record['date']}, commit "
+            f"`{record['commit']}`) every parameter's worst error is "
+            + ("within" if record["all_within_three_sigma"] else "not within")
+            + f" Table I's 3 sigma (the closest: {worst} at {rows[worst]['over_three_sigma']:.2f} of it); the bias "
+            f"std is {bias} x its Cramer-Rao bound (x, y, z)")
+
+
+def joint_split_block(two_step: dict, joint: dict) -> str:
+    """The EKF's split-half RMS z per BROAD trial, two steps against R and h as states."""
+    def by_trial(record):
+        return {r["name"]: r for r in record["rows"] if r["name"].startswith("BROAD")}
+
+    a, b = by_trial(two_step), by_trial(joint)
+
+    def cell(r):
+        if r is None:
+            return "-"
+        if r.get("ekf_exit"):
+            return f"exit {r['ekf_exit']}"
+        z = r.get("ekf_split_rms_z")
+        return "a half refused" if z is None else f"{z:.2f}"
+
+    def dead_reckoning(r):
+        if r.get("ekf_rms_deg") is None:
+            return "-"
+        return f"{r['raw_rms_deg']:.1f} / {r.get('nls_rms_deg', float('nan')):.1f} / {r['ekf_rms_deg']:.1f}"
+
+    rows = [[name, cell(a.get(name)), cell(b.get(name)), dead_reckoning(b[name])] for name in b]
+    return (f"`{joint['command']}` ({joint['date']}, commit `{joint['commit']}`), beside the two steps' record:\n\n"
+            + table(["trial", "split RMS z, two steps", "split RMS z, R and h as states",
+                     "dead reckoning deg raw / NLS / EKF (R and h as states)"], rows))
+
+
 def blocks() -> dict[str, str]:
     out = check_blocks()
+    if has_record(TABLE1_TARGETS):
+        out["ekf-table1-targets"] = table1_targets_block(read_record(TABLE1_TARGETS))
+    if has_record(JOINT) and has_record(REAL):
+        out["ekf-joint-split"] = joint_split_block(read_record(REAL), read_record(JOINT))
+    if has_record(CHECK_SIMS):
+        out["ekf-check-sims"] = check_sims_block(read_record(CHECK_SIMS))
     trials = read_record("broad-trials")
     out["ekf-lag-07"] = (f"{trials['trials']['07']['lag_ms']:.1f} ms (docs/real-data.md section 1, "
                          f"commit `{trials['commit']}`)")

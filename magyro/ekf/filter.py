@@ -134,6 +134,9 @@ class ErrorStateEKF:
         self._rows: list[tuple] = []
         self.room = None           # a DisturbanceSensitivity (magyro.ekf.room) to record, when the room is counted
         self.innovations = None    # a list to append (innovation, S) of every update to, when asked
+        # with consider states: estimate R and h too (their gain is not zero, the correction is injected); off, the
+        # paper's two steps
+        self.estimate_magnetometer = False
 
     # ---- the nominal state as arrays
 
@@ -289,7 +292,9 @@ class ErrorStateEKF:
         PHt = P @ H.T                                      # (n, 3)
         S = H @ PHt + self.Rn
         (A, Bs, Cs, E, F, I), Si, det_S = inv_sym33(S)
-        Wa = PHt[:N_STATE] @ Si                            # gain of the estimated states (consider states get none)
+        joint = self.consider and self.estimate_magnetometer
+        W = PHt @ Si if joint else None
+        Wa = W[:N_STATE] if joint else PHt[:N_STATE] @ Si   # gain of the estimated states (consider states get none)
         zz = z.tolist()
         v1, v2, v3 = zz[0] - z1, zz[1] - z2, zz[2] - z3
         nu = (v1, v2, v3)
@@ -298,14 +303,18 @@ class ErrorStateEKF:
         if self.likelihood_from_s <= self.t <= self.likelihood_to_s:
             # an S that is not positive definite (a filter whose covariance broke down) has no likelihood
             self.nll_sum += 0.5 * (nis + math.log(det_S)) if det_S > 0.0 else math.inf
-        dx = (Wa @ nu).tolist()
+        dx = ((W if joint else Wa) @ nu).tolist()
         if self.innovations is not None:
             self.innovations.append((nu, S))
         if self.room is not None:
             self.room.update(self.t, Wa, H, np.array(self._C).reshape(3, 3))
-        P[:N_STATE] -= Wa @ PHt.T
-        if self.consider:
-            P[N_STATE:, :N_STATE] = P[:N_STATE, N_STATE:].T
+        if joint:
+            P -= W @ PHt.T
+            self._inject_magnetometer(dx[N_STATE:])
+        else:
+            P[:N_STATE] -= Wa @ PHt.T
+            if self.consider:
+                P[N_STATE:, :N_STATE] = P[:N_STATE, N_STATE:].T
         # inject. The reset Jacobians differ from I by O(|dx|) for the attitude (I - (dphi x)/2,
         # |dphi| ~ 1e-3 rad) and by O(|dm|^2) for the field basis: both are left out.
         self._C = mul33(self._C, exp9(dx[0], dx[1], dx[2]))
@@ -328,6 +337,15 @@ class ErrorStateEKF:
             self._refresh_noise()
         if self.history_stride and self.mag_updates % self.history_stride == 0:
             self._record()
+
+    def _inject_magnetometer(self, d_Rh: list) -> None:
+        """R (upper, UPPER order) and h corrected by the update, and what is derived from them."""
+        for n, (i, j) in enumerate(UPPER):
+            self.R[i, j] += d_Rh[n]
+        self.h = self.h + np.asarray(d_Rh[6:9])
+        self.Rn = self.mag_noise_std**2 * (self.R @ self.R.T)
+        self._Hc_h = self.R.tolist()
+        self._Sinv = np.linalg.inv(self.R).reshape(-1).tolist()
 
     # ---- reading
 

@@ -5,7 +5,8 @@
 
     1. the shared front end (`magyro.front.prepare`): rests, noise, ellipsoid, unit check, gate
     2. step 1, the magnetometer: Gauss-Newton on the constant-norm condition,
-       from the ellipsoid (`magyro.ekf.magnetometer`)
+       from the ellipsoid (`magyro.ekf.magnetometer`); one that runs to its iteration limit is refused (exit 3,
+       `step1_convergence_verdict`): the filter would follow it, not the motion
     3. the filter's prior: eq. (13) on the calibrated field (`magyro.ekf.prior`)
     4. step 2, the error-state EKF fed the whole session in time order, the magnetometer stamps shifted
        by its lag and its noise re-weighted from the innovations (`magyro.ekf.streaming`,
@@ -17,7 +18,8 @@
        differences, like the least squares' `magyro.nls.information.propagate`:
        `magyro.ekf.uncertainty`), and the estimates over time
        (`magyro.ekf.history`, the paper's Fig. 3/6/7); the std counts the lag's uncertainty
-       (`magyro.ekf.uncertainty.with_lag`).
+       (`magyro.ekf.uncertainty.with_lag`). `magyro.calibrate` then judges it by the same result check as the
+       least squares' (`magyro.result.check`: the turning misfit, the raw gyro's drift, the rests).
 """
 from __future__ import annotations
 
@@ -30,7 +32,7 @@ import numpy as np
 
 from magyro.ekf.history import HISTORY_ROWS, EkfHistory
 from magyro.ekf.lag import LAG_STEP_S, MAX_LAG_RUNS, LagEstimate, likelihood_span, search_lag
-from magyro.ekf.magnetometer import known_magnetometer, refine_magnetometer
+from magyro.ekf.magnetometer import NEWTON_MAX_ITER, known_magnetometer, refine_magnetometer
 from magyro.ekf.prior import PRIOR_INFLATION, Initial, initial_estimate
 from magyro.ekf.streaming import StreamingCalibrator, run_filter
 from magyro.ekf.uncertainty import reported_covariance, with_lag
@@ -42,6 +44,7 @@ from magyro.front import ellipsoid
 from magyro.front.initial import with_time_offset
 from magyro.front.noise import whitened_effective_scale
 from magyro.nls.diagnostics import rest_check
+from magyro.nls.run import solved_accuracy_gate
 from magyro.observability.gate import unexcited_directions
 from magyro.observability.prediction import excitation_gate
 from magyro.front.prepare import Prepared, prepare
@@ -75,6 +78,9 @@ class EKF:
     consider_magnetometer: carry step 1's uncertainty into the std of the gyro
     parameters (Schmidt-Kalman consider states); off, the std is the filter's
     alone, as in the paper, which treats the calibrated magnetometer as exact.
+    estimate_magnetometer: R and h become states of the filter, started at step 1's with its covariance (the gyro
+    then constrains them, as in the least squares); off (the default), the paper's two steps, R and h as consider
+    states. Measured in docs/ekf.md ("Why the EKF's halves disagree").
     history_rows: about how many instants the history keeps.
     prior_inflation: the eq. (13) std is multiplied by this for the filter's prior.
     """
@@ -86,6 +92,7 @@ class EKF:
     history_rows: int = HISTORY_ROWS
     prior_inflation: float = PRIOR_INFLATION
     count_room: bool = True                # the std counts the room's field disturbance (magyro.ekf.room)
+    estimate_magnetometer: bool = False    # R and h as states of the filter (from step 1's), not consider states
 
     def calibrate(self, session: Session, options: Options | None = None) -> Calibration:
         """Calibrate gyro and magnetometer from one session (returns a `magyro.Calibration`)."""
@@ -104,6 +111,7 @@ class EKF:
             ref = known_magnetometer(*self.magnetometer)
         else:
             ref = magnetometer_step(s, prep, self.mag_bias_correction)
+            gate_warnings += step1_convergence_verdict(ref, prep, options)
         lag0 = magnetometer_lag(s, ref, prep, options)
         searched = lag_is_searched(prep, options)
         room = (measured_disturbance(s.t_mag_s, s.mag, ref) if self.magnetometer is None and self.count_room
@@ -124,6 +132,7 @@ class EKF:
             if final and room.std_fraction > 0.0:
                 filt.room = DisturbanceSensitivity(N_STATE)
             filt.innovations = [] if innovations else None
+            filt.estimate_magnetometer = self.estimate_magnetometer
             filt.likelihood_from_s, filt.likelihood_to_s = span[0] - lag_s, span[1] - lag_s
             run_filter(lagged(s, lag_s), filt)
             filter_runs.append(lag_s)
@@ -148,6 +157,9 @@ class EKF:
         cal = assemble(filt, prep, init, filter_s, time.perf_counter() - t_start, tau, room, omega, sigma_mag, lag,
                        len(filter_runs), lag0)
         cal.warnings.extend(gate_warnings + warnings)
+        # the bounds on the solved std, as the least squares applies them: a std that counts a wandering room can
+        # be too large for the result to be worth having although the motion excites every parameter well
+        cal.warnings.extend(solved_accuracy_gate(cal, options))
         return cal, history
 
 
@@ -227,6 +239,28 @@ def magnetometer_step(s: Session, prep: Prepared, bias_correction: bool):
     return ref
 
 
+def step1_convergence_verdict(ref, prep: Prepared, options: Options) -> list[str]:
+    """Step 1's Gauss-Newton that runs to its iteration limit has walked off along a direction the field's norm
+    alone does not pin (a cap of the sphere fitted by ever larger spheres): ObservabilityError (exit 3), or with
+    --force the warning. The filter then follows step 1, not the motion, and agrees with its own field, so no check
+    of the result against the data sees it: the second half of BROAD trial 07 (ellipsoid uniqueness 2.6, its field
+    wandering) ran 50 iterations to an R 20-45 % small and a hard iron 28 field units away, the filter's scale 17 %
+    low (the split check read 14 sigma); a simulated 40/25 Hz hand with an ideal gyro on part of the sphere
+    (uniqueness 1.3; 50 iterations on seeds 0-5, R 4-60 % off) had the scale 10 % low at 8.7 of its std and
+    dead-reckoned 16.5 deg RMS against the raw gyro's 0.9. The least squares, which fits R and h with the gyro,
+    was right on both."""
+    if ref.iterations < NEWTON_MAX_ITER:
+        return []
+    why = (f"the magnetometer's step 1 (Gauss-Newton on the field's norm, without the gyro) did not converge in "
+           f"{NEWTON_MAX_ITER} iterations: the field directions do not pin its soft/hard iron (ellipsoid uniqueness "
+           f"{prep.fit.uniqueness:.1f})")
+    if not options.force:
+        raise ObservabilityError(f"{why}; turn the device through more orientations so that the field sweeps much of "
+                                 "the sphere, or solve with the least squares (--method nls), which fits them with "
+                                 "the gyro", prep.analysis)
+    return [f"solved with --force although {why}"]
+
+
 LAG_NOT_BRACKETED = ("the filter's likelihood gave no magnetometer lag (it did not bracket one within +/-0.1 s and "
                      f"{MAX_LAG_RUNS} runs, or the filter's innovation covariance lost positive definiteness), so the "
                      "lag of the linear fit (eq. 13) is used and the std does not count its uncertainty; solve with the "
@@ -266,11 +300,11 @@ def assemble(filt: StreamingCalibrator, prep: Prepared, init: Initial, filter_s:
     ref = init.refinement
 
     def reported(cov_in: np.ndarray) -> np.ndarray:
-        cov = reported_covariance(K, eps, ref.R, ref.h, m, cov_in, C)
+        cov = reported_covariance(K, eps, filt.R, filt.h, m, cov_in, C)
         if lag is None:
             return cov
-        S = np.linalg.inv(ref.R)
-        g = lag.sensitivity(lambda lag_s, run: reported_vector(run.K, run.eps, S, ref.h, run.m, C, lag_s))
+        g = lag.sensitivity(lambda lag_s, run: reported_vector(run.K, run.eps, np.linalg.inv(run.R), run.h, run.m, C,
+                                                               lag_s))
         return with_lag(cov, lag.std_s, g)
 
     cov_white = filt.input_covariance(ref.covariance)
@@ -278,7 +312,7 @@ def assemble(filt: StreamingCalibrator, prep: Prepared, init: Initial, filter_s:
     std = std_white if omega is None else std_from_covariance(reported(cov_white + room_input_covariance(omega, filt.B)))
     n_samples = filt.gyro_samples + filt.mag_updates
     return Calibration(
-        K_g=Kg, bias_rad_s=C.T @ eps, K=K, eps_rad_s=eps, C_b_m=C, R=ref.R, h=ref.h,
+        K_g=Kg, bias_rad_s=C.T @ eps, K=K, eps_rad_s=eps, C_b_m=C, R=filt.R.copy(), h=filt.h.copy(),
         mag_unit=prep.session.mag_unit, field_i=m, std=std, std_white=None if omega is None else std_white,
         observability=Excitation.of(prep.analysis),
         solver=SolverReport("ekf", "done", int(n_samples), float(filter_s), float(total_s), {
