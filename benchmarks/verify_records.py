@@ -261,6 +261,8 @@ NOT_COVERED: list[Expensive] = [
     Expensive("bench-cold-start", "12 min loaded (a wheel install compiling 23 kernels, then seven cases cold and warm)",
               ("docs/development.md",)),
     Expensive("suite-time", "403 s (its record: the whole test suite)", ("README.md",), why="the whole suite"),
+    Expensive("wild-corpus", "about 1 min quiet (ten real recordings imported, checked, observed and solved by both "
+              "methods; needs ../shared/data/wild)", ("docs/results.md",)),
     Expensive("hand-turned-phones", "about 1.5 min quiet, 3 min loaded (12 simulated phones, the two iPhone replicas; "
               "needs ../shared for the replicas)", ("docs/how-it-works.md",)),
 ]
