@@ -261,6 +261,11 @@ NOT_COVERED: list[Expensive] = [
     Expensive("bench-cold-start", "12 min loaded (a wheel install compiling 23 kernels, then seven cases cold and warm)",
               ("docs/development.md",)),
     Expensive("suite-time", "403 s (its record: the whole test suite)", ("README.md",), why="the whole suite"),
+    Expensive("ekf-check-sims", "several minutes (36 simulated runs with a reference attitude, EKF and NLS)",
+              ("docs/ekf.md",)),
+    Expensive("ekf-real-data-joint", "several minutes (the EKF with R and h as states on BROAD 02, 07, 09 with split "
+              "checks; needs ../shared/data/broad)", ("docs/ekf.md",)),
+    Expensive("ekf-table1-targets", "a few minutes (20 EKF Monte Carlo runs of paper-table1)", ("docs/ekf.md",)),
     Expensive("wild-corpus", "about 1 min quiet (ten real recordings imported, checked, observed and solved by both "
               "methods; needs ../shared/data/wild)", ("docs/results.md",)),
     Expensive("hand-turned-phones", "about 1.5 min quiet, 3 min loaded (12 simulated phones, the two iPhone replicas; "
