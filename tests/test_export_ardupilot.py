@@ -242,3 +242,10 @@ def test_cli_writes_the_file_and_states_what_ardupilot_cannot_hold_on_stderr(tmp
     said = written.stderr.splitlines()
     assert len(said) == 3 and all(line.startswith("ardupilot cannot hold: ") for line in said), written.stderr
     assert "GYRO" in said[0] and "COMPASS" in said[1] and "ACCEL" in said[2]
+
+
+def test_an_offset_above_ardupilots_arming_limit_is_stated():
+    cal = general_calibration()
+    assert "COMPASS_OFFS_MAX" not in export_text(cal, "ardupilot")       # 401 mG: within the 1800 mG default
+    far = dataclasses.replace(cal, h=np.array([3.5, -12.25, 240.0]))     # 2400 mG
+    assert "COMPASS_OFS up to 2400.0 mG: above COMPASS_OFFS_MAX's default" in export_text(far, "ardupilot")

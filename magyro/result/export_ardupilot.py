@@ -36,6 +36,9 @@ from magyro.result.export_tools import _check_gyro, _one_line, _rotation_angle_d
 from magyro.text import escaped
 
 MILLIGAUSS_PER_GAUSS = 1000.0
+# AP_Compass.cpp: COMPASS_OFFS_MAX, "the maximum allowed compass offset in calibration and arming checks", whose
+# default AP_COMPASS_OFFSETS_MAX_DEFAULT is 1800 (mG)
+OFFSETS_MAX_DEFAULT_MG = 1800.0
 COST_RATE_DEG_S = 360.0
 
 
@@ -129,6 +132,11 @@ def cannot_hold_lines(cal: Calibration, rate_deg_s: float = COST_RATE_DEG_S) -> 
              f" gyro-magnetometer misalignment, {_rotation_angle_deg(cal.C_b_m):.4f} deg, with the soft iron's rotation);"
              f" up to {c['rotation_left_deg']:.4f} deg of heading. Only a compass orientation could hold it"
              " (COMPASS_ORIENT, a custom rotation), applied before the offsets: not written."]
+    largest_mG = float(np.max(np.abs(c["offsets_mG"])))
+    if largest_mG > OFFSETS_MAX_DEFAULT_MG:
+        lines.append(f"COMPASS_OFS up to {largest_mG:.1f} mG: above COMPASS_OFFS_MAX's default "
+                     f"({OFFSETS_MAX_DEFAULT_MG:g} mG), so ArduPilot's arming check refuses the compass unless "
+                     "COMPASS_OFFS_MAX is raised (its documented range: 500 to 3000 mG).")
     if cal.accelerometer is not None:
         a = ardupilot_accelerometer(cal)
         grav = a["g_m_s2"]
