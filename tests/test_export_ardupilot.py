@@ -249,3 +249,19 @@ def test_an_offset_above_ardupilots_arming_limit_is_stated():
     assert "COMPASS_OFFS_MAX" not in export_text(cal, "ardupilot")       # 401 mG: within the 1800 mG default
     far = dataclasses.replace(cal, h=np.array([3.5, -12.25, 240.0]))     # 2400 mG
     assert "COMPASS_OFS up to 2400.0 mG: above COMPASS_OFFS_MAX's default" in export_text(far, "ardupilot")
+
+
+def test_on_broad_02_s_own_samples_ardupilot_is_within_what_the_file_states(broad02_acc_solved):
+    """The shipped trial, solved once per run (conftest): its raw samples through ArduPilot's formulas."""
+    session, cal = broad02_acc_solved
+    text = export_text(cal, "ardupilot", source="broad-02")
+    params = read_parm(text)
+    assert cal.mag_unit == "uT"
+    _, field_m = cal.apply(np.zeros_like(session.mag), session.mag)
+    ardupilot = ardupilot_compass_mG(session.mag * MG_PER_UT, params)
+    turned_deg = stated(text, r"the field is turned by ([0-9.]+) deg from the gyro frame")
+    assert np.max(angle_deg(ardupilot, field_m @ cal.C_b_m)) <= turned_deg + 1e-4
+    rates = cal.apply(session.gyro_rad_s)[0]
+    error_deg_s = np.degrees(np.linalg.norm(ardupilot_gyro_rad_s(session.gyro_rad_s, params) - rates, axis=1))
+    worst_per_deg_s = stated(text, r"([0-9.]+) deg/s about the worst direction") / RATE_DEG_S
+    assert np.all(error_deg_s <= worst_per_deg_s * np.degrees(np.linalg.norm(rates, axis=1)) + 1e-9)
