@@ -162,8 +162,9 @@ def ardupilot_text(cal: Calibration, source: str = "", rate_deg_s: float = COST_
               "#     mG: field = [DIA ODI; symmetric] (COMPASS_SCALE (y + COMPASS_OFS)); the offsets are ADDED",
               "#   gyro  (AP_InertialSensor_Backend.cpp _rotate_and_correct_gyro), rad/s: w = y - INS_GYROFFS",
               "#   accel (same file, _rotate_and_correct_accel), m/s^2: f = (y - INS_ACCOFFS) .* INS_ACCSCAL",
-              "# The readings magyro calibrated are taken as those ArduPilot corrects: the compass's after its",
-              "#   orientation (COMPASS_ORIENT / AHRS_ORIENTATION as on the vehicle), the IMU's before AHRS_ORIENTATION.",
+              "# The readings magyro calibrated are taken as those ArduPilot corrects, with AHRS_ORIENTATION = 0: the",
+              "#   compass's after its COMPASS_ORIENT, the IMU's after the driver's own rotation. With another board",
+              "#   orientation ArduPilot turns the compass BEFORE its correction and the IMU AFTER: calibrate in that frame.",
               "# COMPASS: magyro's field in the gyro frame m_b = C_b_m^T R (y_m - h) = V Q (y_m - h) (polar",
               "#   decomposition: V a rotation, Q symmetric). OFS = -h in mG (unit "
               f"'{_one_line(cal.mag_unit)}' x {c['milligauss_per_unit']:g}); DIA/ODI = k Q,",
