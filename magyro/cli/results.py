@@ -61,16 +61,22 @@ def apply_command(
 
 def export_command(
     calibration: Path = typer.Argument(..., metavar="CALIB", readable=False, help="Calibration JSON written by magyro solve."),
-    fmt: str = typer.Option(..., "--format", "-f", help="yaml (a plain, commented YAML file), c (a C99 header with the matrices and apply functions), kalibr (Kalibr's scale-misalignment IMU yaml, exact) or px4 (a QGroundControl .params file: gyro offset only, its cost stated)."),
+    fmt: str = typer.Option(..., "--format", "-f", help="yaml (a plain, commented YAML file), c (a C99 header with the matrices and apply functions), kalibr (Kalibr's scale-misalignment IMU yaml, exact), px4 (a QGroundControl .params file: gyro offset only, its cost stated) or ardupilot (a Mission Planner / MAVProxy .parm file: COMPASS_OFS/DIA/ODI, INS_GYROFFS, INS_ACCOFFS/ACCSCAL; what ArduPilot cannot hold and its cost stated, also on stderr)."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", readable=False, help="Write here (default: print to the terminal)."),
 ):
     """The calibration for other programs: K_g, bias, C_b_m, K, eps, R, h (and K_a, its bias and C_b_a when it has an
-    accelerometer) and the model, as YAML (yaml), a C99 header (c), Kalibr's IMU yaml (kalibr) or a PX4 .params file
-    (px4)."""
+    accelerometer) and the model, as YAML (yaml), a C99 header (c), Kalibr's IMU yaml (kalibr), a PX4 .params file
+    (px4) or an ArduPilot parameter file (ardupilot)."""
     from magyro.api import export_file
 
     def action():
         text = export_file(calibration, fmt, output)
+        if fmt == "ardupilot":   # what the parameters cannot hold, and its cost, where it is not missed
+            from magyro.result.calibration import Calibration
+            from magyro.result.export_ardupilot import cannot_hold_lines
+
+            for line in cannot_hold_lines(Calibration.from_json(calibration)):
+                typer.echo(f"ardupilot cannot hold: {line}", err=True)
         if output is None:
             typer.echo(text, nl=False)
         else:

@@ -8,9 +8,10 @@ to the same double:
     magnetometer:    m_m = R (y_m - h)        (unit norm; h in the magnetometer's unit)
     accelerometer:   f_a = K_a y_a + eps_a    (m/s^2, when the calibration has one; f_b = C_b_a^T f_a)
 
-`export_text(cal, "yaml" | "c" | "kalibr" | "px4", source=...)` returns the text; `magyro export` writes it.
-The formats of other tools (Kalibr's scale-misalignment IMU yaml, a PX4 .params file) are in
-magyro/result/export_tools.py, with their mappings and what they cannot hold.
+`export_text(cal, "yaml" | "c" | "kalibr" | "px4" | "ardupilot", source=...)` returns the text; `magyro export`
+writes it. The formats of other tools (Kalibr's scale-misalignment IMU yaml, a PX4 .params file) are in
+magyro/result/export_tools.py, ArduPilot's parameter file in magyro/result/export_ardupilot.py, with their
+mappings and what they cannot hold.
 """
 from __future__ import annotations
 
@@ -21,10 +22,11 @@ import numpy as np
 from magyro.errors import InputError
 from magyro.result.calibration import SCHEMA, Calibration
 from magyro.result.export_common import MODEL_LINES, check_finite, model_lines, yaml_array, yaml_number  # noqa: F401 (API)
+from magyro.result.export_ardupilot import ardupilot_text
 from magyro.result.export_tools import kalibr_text, px4_text
 from magyro.text import c_comment
 
-FORMATS = ("yaml", "c", "kalibr", "px4")
+FORMATS = ("yaml", "c", "kalibr", "px4", "ardupilot")
 
 def export_text(cal: Calibration, fmt: str, source: str = "") -> str:
     """The calibration as text in format `fmt` (one of FORMATS); `source` names where it came from."""
@@ -34,6 +36,8 @@ def export_text(cal: Calibration, fmt: str, source: str = "") -> str:
         return c_header(cal, source)
     if fmt in ("kalibr", "px4"):
         return (kalibr_text if fmt == "kalibr" else px4_text)(cal, source)
+    if fmt == "ardupilot":
+        return ardupilot_text(cal, source)
     raise InputError(f"unknown export format '{fmt}'; use one of: {', '.join(FORMATS)}")
 
 
