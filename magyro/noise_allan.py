@@ -9,7 +9,8 @@ the gyro and of the accelerometer. People read them off a log-log plot by hand; 
 the -1/2 slope of the white noise (N, the density: ARW in rad/s/sqrt(Hz), VRW in m/s^2/sqrt(Hz); the -1/2 line's
 value at tau = 1 s), the flat floor of the bias instability (B, the minimum over 0.664 = sqrt(2 ln 2 / pi)) and the
 +1/2 slope of the rate random walk (K, the +1/2 line's value at tau = 3 s). The three are fitted at once, a weighted
-non-negative least squares of avar on (1/tau, 1, tau) over the taus with at least MIN_CLUSTERS clusters, each tau
+non-negative least squares of avar on (1/tau, 1, tau) over the taus from 0.1 s (FIT_FROM_S: shorter ones show the
+sensor's filter, quantisation or vibration, not its -1/2 slope) with at least MIN_CLUSTERS clusters, each tau
 weighted by its Allan variance's relative error 2/sqrt(2 (n/m - 1)) (n samples, m per cluster): a term read
 separately from each slope is biased by the others where they bend the curve.
 
@@ -48,6 +49,10 @@ TAUS_PER_DECADE = 10
 TAUS_PER_OCTAVE = TAUS_PER_DECADE * math.log10(2.0)
 WHITE_READ_AT_S = 1.0            # the -1/2 line read at tau = 1 s (= N)
 WALK_READ_AT_S = 3.0             # the +1/2 line read at tau = 3 s (= K)
+# the shortest taus are left out of the fit: there a sensor's filter, its quantisation or a vibration bends the
+# curve off the -1/2 slope (BROAD's gyro at rest: a 24 Hz oscillation lifts tau = 0.02 s's deviation 4x above the
+# line through 0.1-0.5 s; the least squares is weighted by the low-frequency density, which the line gives)
+FIT_FROM_S = 0.1
 MIN_STILL_S = 1.0                # less still time than this: not even the white noise
 PAST_MINIMUM_FACTOR = 3.0       # the random walk is read when the longest usable tau is this far past the minimum
 SENSORS = {"gyro": ("rad_s", "rad_s2"), "acc": ("m_s2", "m_s3")}
@@ -144,15 +149,17 @@ class AxisReading:
     why_not: dict = field(default_factory=dict)
 
 
-def fit_terms(taus_s: np.ndarray, avar: np.ndarray, clusters: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """((N^2, (0.664 B)^2, K^2/3), their stds): non-negative least squares of avar on (1/tau, 1, tau), each row
-    over its std (the avar's relative error, 2/sqrt(2 (n/m - 1)), times the fitted avar: a second pass). The stds
-    are the fit's, each tau counted as independent (neighbouring overlapping taus are not: `read_axis` takes the
-    larger of these and the clusters' error at the tau a term is read at)."""
+def fit_terms(taus_s: np.ndarray, avar: np.ndarray, clusters: np.ndarray, terms=(True, True, True)
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """((N^2, (0.664 B)^2, K^2/3), their stds): non-negative least squares of avar on (1/tau, 1, tau) (the `terms`
+    kept; the others 0), each row over its std (the avar's relative error, 2/sqrt(2 (n/m - 1)), times the fitted
+    avar: a second pass). The stds are the fit's, widened by TAUS_PER_OCTAVE (`read_axis` takes the larger of
+    these and the clusters' error at the tau a term is read at)."""
     from scipy.optimize import nnls
 
     rel_var_error = 2.0 * relative_adev_error(clusters)          # avar's relative error is twice adev's
-    design = np.column_stack([1.0 / taus_s, np.ones_like(taus_s), taus_s])
+    kept = np.flatnonzero(terms)
+    design = np.column_stack([1.0 / taus_s, np.ones_like(taus_s), taus_s])[:, kept]
     level = avar
     for _ in range(2):
         A = design / (level * rel_var_error)[:, None]
@@ -163,7 +170,9 @@ def fit_terms(taus_s: np.ndarray, avar: np.ndarray, clusters: np.ndarray) -> tup
     A = design / (level * rel_var_error)[:, None]
     scale = np.abs(A).max(axis=0)
     cov = np.linalg.pinv((A / scale).T @ (A / scale)) / np.outer(scale, scale)
-    return coef, np.sqrt(np.maximum(np.diag(cov), 0.0) * TAUS_PER_OCTAVE)
+    full, full_std = np.zeros(3), np.zeros(3)
+    full[kept], full_std[kept] = coef, np.sqrt(np.maximum(np.diag(cov), 0.0) * TAUS_PER_OCTAVE)
+    return full, full_std
 
 
 def root_std(c: float, c_std: float) -> float:
@@ -171,18 +180,26 @@ def root_std(c: float, c_std: float) -> float:
     return c_std / (2.0 * math.sqrt(c)) if c > 0 else math.inf
 
 
+def fitted_from_s(taus_s: np.ndarray) -> float:
+    """The shortest tau fitted: FIT_FROM_S, or a fifth of the longest tau when that is shorter (a short rest)."""
+    return min(FIT_FROM_S, float(taus_s[-1]) / 5.0)
+
+
 def read_axis(curve: AllanCurve, axis: int) -> AxisReading:
-    """The usual reading of one axis's curve (module docstring)."""
-    taus, avar, clusters = curve.taus_s, curve.avar[:, axis], curve.clusters
+    """The usual reading of one axis's curve (module docstring), from tau = fitted_from_s on."""
+    kept = curve.taus_s >= fitted_from_s(curve.taus_s) * (1.0 - 1e-9)
+    taus, avar, clusters = curve.taus_s[kept], curve.avar[kept, axis], curve.clusters[kept]
     (white_c, flat_c, walk_c), (white_c_std, flat_c_std, walk_c_std) = fit_terms(taus, avar, clusters)
     rel = relative_adev_error(clusters)
     i_min = int(np.argmin(avar))
     why = {}
-    white = math.sqrt(white_c) if white_c > 0 else math.sqrt(avar[0] * taus[0])
-    white_std = max(white * float(rel[0]), root_std(white_c, white_c_std))
     bias = bias_std = walk = walk_std = None
     # the fitted curve's minimum (the -1/2 and +1/2 terms equal) at least PAST_MINIMUM_FACTOR inside the longest tau
     past_minimum = walk_c > 0 and white_c > 0 and PAST_MINIMUM_FACTOR * math.sqrt(white_c / walk_c) <= taus[-1]
+    if not past_minimum:      # the curve shows no minimum: the -1/2 line alone (a short rest)
+        (white_c, _, _), (white_c_std, _, _) = fit_terms(taus, avar, clusters, (True, False, False))
+    white = math.sqrt(white_c) if white_c > 0 else math.sqrt(avar[0] * taus[0])
+    white_std = max(white * float(rel[0]), root_std(white_c, white_c_std))
     if past_minimum and flat_c > 0:
         bias = math.sqrt(flat_c) / FLICKER_FLOOR
         bias_std = max(bias * float(rel[i_min]), root_std(flat_c, flat_c_std) / FLICKER_FLOOR)
@@ -397,6 +414,14 @@ def options_values(noise_path) -> dict:
     return {"gyro_noise_density_rad_s_sqrt_hz": gyro_density_rad_s_sqrt_hz(read_noise(noise_path))}
 
 
+def gyro_noise_deg_s_sqrt_hz_option(noise_path, gyro_noise_deg_s_sqrt_hz: float | None) -> float:
+    """What `magyro solve --noise FILE` passes as --gyro-noise (deg/s/sqrt(Hz), Options.in_user_units' unit);
+    InputError when --gyro-noise is given too."""
+    if gyro_noise_deg_s_sqrt_hz is not None:
+        raise InputError("--noise and --gyro-noise both give the gyro noise: pass one")
+    return math.degrees(options_values(noise_path)["gyro_noise_density_rad_s_sqrt_hz"])
+
+
 def kalibr_values(noise_path) -> dict:
     """Kalibr's noise keys (the largest axis: Kalibr takes one number per sensor) and update_rate; InputError when
     the file lacks one (Kalibr refuses a random walk that is not > 0)."""
@@ -412,3 +437,26 @@ def kalibr_values(noise_path) -> dict:
     out = {kalibr: max(noise[key]) for kalibr, key in wanted.items()}
     out["update_rate"] = noise["rate_hz"]
     return out
+
+
+def kalibr_export_file(calibration_path, noise_path, rostopic: str | None = None, output=None,
+                       fmt: str = "kalibr") -> str:
+    """`magyro export CALIB --format kalibr --noise NOISE [--rostopic T]`: Kalibr's imu.yaml with its noise keys,
+    written whole to `output` when given; the text."""
+    from magyro.io import check_outputs, write_text_atomically
+    from magyro.result.calibration import Calibration
+    from magyro.result.export_tools import kalibr_text
+
+    if fmt != "kalibr":
+        raise InputError("--noise and --rostopic are for --format kalibr")
+    if noise_path is None:
+        raise InputError("--rostopic needs --noise: Kalibr's imu.yaml needs the noise with its topic")
+    check_outputs([calibration_path, noise_path], [output])
+    if rostopic is not None and not rostopic.strip():
+        raise InputError("--rostopic must name a topic, e.g. /imu0")
+    noise = kalibr_values(noise_path)
+    text = kalibr_text(Calibration.from_json(calibration_path), source=str(calibration_path), noise=noise,
+                       rostopic=rostopic)
+    if output is not None:
+        write_text_atomically(output, text)
+    return text
