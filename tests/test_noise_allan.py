@@ -13,9 +13,9 @@ pytest.importorskip("allantools")
 
 from magyro.errors import InputError  # noqa: E402
 from magyro.io import load_session, write_session  # noqa: E402
-from magyro.noise_allan import (SCHEMA, RecordingTooShort, allan_curve, gyro_noise_deg_s_sqrt_hz_option,  # noqa: E402
-                                kalibr_export_file, read_axis, read_noise, require_allantools, samples_within,
-                                session_noise)
+from magyro.noise_allan import (SCHEMA, RecordingTooShort, allan_curve, read_axis, require_allantools,  # noqa: E402
+                                samples_within, session_noise)
+from magyro.noise_file import gyro_noise_deg_s_sqrt_hz_option, kalibr_export_file, read_noise  # noqa: E402
 from magyro.session import Session  # noqa: E402
 
 from conftest import SHIPPED_BROAD_02  # noqa: E402

@@ -73,7 +73,7 @@ def export_command(
 
     def action():
         if noise is not None or rostopic is not None:
-            from magyro.noise_allan import kalibr_export_file
+            from magyro.noise_file import kalibr_export_file
 
             text = kalibr_export_file(calibration, noise, rostopic, output, fmt)
         else:

@@ -51,7 +51,7 @@ def solve(
     def action():
         bounds = StdBounds(max_std_scale_ppm, max_std_nonorth_deg, max_std_bias_deg_s, max_std_misalignment_deg)
         if noise is not None:
-            from magyro.noise_allan import gyro_noise_deg_s_sqrt_hz_option
+            from magyro.noise_file import gyro_noise_deg_s_sqrt_hz_option
 
             density = gyro_noise_deg_s_sqrt_hz_option(noise, gyro_noise_deg_s_sqrt_hz)
         else:
