@@ -110,9 +110,11 @@ def test_the_command_refuses_a_short_recording_with_exit_3_and_writes_nothing(sh
 
 
 def test_the_command_writes_a_noise_file_its_reader_reads_and_solve_takes(short_still, tmp_path, run_magyro):
-    out = tmp_path / "noise.json"
-    done = run_magyro("noise", short_still, "-o", out, "--white-only", "-q")
+    pytest.importorskip("matplotlib")
+    out, figure = tmp_path / "noise.json", tmp_path / "allan.png"
+    done = run_magyro("noise", short_still, "-o", out, "--plot", figure, "--white-only", "-q")
     assert done.returncode == 0, done.stderr
+    assert figure.read_bytes().startswith(b"\x89PNG")
     noise = read_noise(out)
     assert noise["rate_hz"] == pytest.approx(RATE_HZ, rel=1e-6)
     assert noise["gyro_random_walk_rad_s2_sqrt_hz"] is None
