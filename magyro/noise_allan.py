@@ -199,7 +199,8 @@ def read_axis(curve: AllanCurve, axis: int) -> AxisReading:
     past_minimum = walk_c > 0 and white_c > 0 and PAST_MINIMUM_FACTOR * math.sqrt(white_c / walk_c) <= taus[-1]
     if not past_minimum:      # the curve shows no minimum: the -1/2 line alone (a short rest)
         (white_c, _, _), (white_c_std, _, _) = fit_terms(taus, avar, clusters, (True, False, False))
-    white = math.sqrt(white_c) if white_c > 0 else math.sqrt(avar[0] * taus[0])
+    # the -1/2 line N^2/tau read at tau = 1 s is N (without a white term: the first point's level)
+    white = math.sqrt((white_c if white_c > 0 else avar[0] * taus[0]) / WHITE_READ_AT_S)
     white_std = max(white * float(rel[0]), root_std(white_c, white_c_std))
     if past_minimum and flat_c > 0:
         bias = math.sqrt(flat_c) / FLICKER_FLOOR
@@ -208,8 +209,8 @@ def read_axis(curve: AllanCurve, axis: int) -> AxisReading:
         why["bias_instability"] = "the curve has no minimum inside the taus with enough clusters"
     walk_term_last = walk_c * taus[-1]
     if past_minimum and walk_c > 0 and walk_term_last > white_c / taus[-1] + flat_c:
-        walk = math.sqrt(3.0 * walk_c)
-        walk_std = max(walk * float(rel[-1]), math.sqrt(3.0) * root_std(walk_c, walk_c_std))
+        walk = math.sqrt(walk_c * WALK_READ_AT_S)      # the +1/2 line K^2 tau / 3 read at tau = 3 s is K
+        walk_std = max(walk * float(rel[-1]), math.sqrt(WALK_READ_AT_S) * root_std(walk_c, walk_c_std))
     else:
         why["random_walk"] = "the curve does not rise on the +1/2 slope at the longest taus"
     return AxisReading(white, white_std, bias, bias_std, walk, walk_std, float(taus[i_min]), float(taus[-1]), why)
@@ -347,7 +348,7 @@ def session_noise(session, whole: bool = False, white_only: bool = False) -> Noi
             if missing:
                 need = needed_still_s(curve, still_s)
                 raise RecordingTooShort(
-                    f"{still_s:.0f} s still is too short to read the {name}'s {' and '.join(missing)} ("
+                    f"{still_s:.0f} s still is too short to read the {name}'s {' and '.join(term.replace('_', ' ') for term in missing)} ("
                     f"{readings[0].why_not[missing[0]] if missing[0] in readings[0].why_not else 'on one axis'}): "
                     f"the +1/2 slope needs tau well past the curve's minimum (here at "
                     f"{max(r.minimum_tau_s for r in readings):.3g} s) with at least {MIN_CLUSTERS} clusters: record "
