@@ -315,6 +315,19 @@ def still_stretches_s(session, whole: bool) -> tuple[str, list]:
     return "the rests at both ends (magyro.front.rests.find_rests)", list(find_rests(session).segments_s)
 
 
+def too_short_message(name: str, missing: list, readings: list, curve: AllanCurve, still_s: float) -> str:
+    """Why the terms in `missing` cannot be read, and how long a still recording would do."""
+    lowest_s, longest_s = max(r.minimum_tau_s for r in readings), readings[0].longest_tau_s
+    where = (f"the curve still falls at its longest tau with {MIN_CLUSTERS} clusters, {longest_s:.3g} s"
+             if lowest_s >= longest_s * (1.0 - 1e-9) else
+             f"its lowest point at {lowest_s:.3g} s, not far enough inside its longest tau, {longest_s:.3g} s")
+    return (f"{still_s:.0f} s still is too short to read the {name}'s "
+            f"{' and '.join(term.replace('_', ' ') for term in missing)} ({where}): the +1/2 slope needs tau well past "
+            f"the curve's minimum with at least {MIN_CLUSTERS} clusters: record at least "
+            f"{needed_still_s(curve, still_s) / 3600:.1f} h still (the usual advice: 2 h or more); --white-only "
+            "measures the white noise alone")
+
+
 def samples_within(t_s: np.ndarray, x: np.ndarray, segments_s: list) -> list[np.ndarray]:
     return [x[(t_s >= a) & (t_s <= b)] for a, b in segments_s]
 
@@ -346,13 +359,6 @@ def session_noise(session, whole: bool = False, white_only: bool = False) -> Noi
         if not white_only:
             missing = sorted({term for r in readings for term in r.why_not})
             if missing:
-                need = needed_still_s(curve, still_s)
-                raise RecordingTooShort(
-                    f"{still_s:.0f} s still is too short to read the {name}'s {' and '.join(term.replace('_', ' ') for term in missing)} ("
-                    f"{readings[0].why_not[missing[0]] if missing[0] in readings[0].why_not else 'on one axis'}): "
-                    f"the +1/2 slope needs tau well past the curve's minimum (here at "
-                    f"{max(r.minimum_tau_s for r in readings):.3g} s) with at least {MIN_CLUSTERS} clusters: record "
-                    f"at least {need / 3600:.1f} h still (the usual advice: 2 h or more); --white-only measures the "
-                    "white noise alone")
+                raise RecordingTooShort(too_short_message(name, missing, readings, curve, still_s))
         sensors[name], curves[name] = readings, curve
     return NoiseReport(rate, float(session.duration_s), how, segments, sensors, curves)
