@@ -8,6 +8,7 @@ One module per command family, each command a plain function registered here (in
   validate, apply, export, report     magyro.cli.results
   observe, check                      magyro.cli.recording
   watch       magyro.cli.live         (and simulate --stream)
+  noise       magyro.cli.noise        the Allan deviation of a still recording (Kalibr's noise numbers)
 Every failure the user can fix ends with one plain message on stderr and the exit code of docs/spec.md
 section 3 (2 unusable input, 3 not observable, 1 solver failed): magyro.cli.common.
 """
@@ -26,6 +27,7 @@ from magyro.cli.common import Command, as_written, fail, run_guarded, version_ca
 from magyro.cli.fleet import batch  # noqa: E402
 from magyro.cli.importing import import_app  # noqa: E402
 from magyro.cli.live import watch_command  # noqa: E402
+from magyro.cli.noise import noise_command  # noqa: E402
 from magyro.cli.recording import check_command, observe_command  # noqa: E402
 from magyro.cli.results import apply_command, export_command, report_command, validate_command  # noqa: E402
 from magyro.cli.simulation import montecarlo, plan_command, simulate  # noqa: E402
@@ -72,6 +74,7 @@ app.command("export", cls=Command)(as_written(export_command))
 app.command("report", cls=Command)(as_written(report_command))
 app.command("watch", cls=Command)(as_written(watch_command))
 app.command("plan", cls=Command)(as_written(plan_command))
+app.command("noise", cls=Command)(as_written(noise_command))
 
 
 def main():

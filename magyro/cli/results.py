@@ -63,6 +63,8 @@ def export_command(
     calibration: Path = typer.Argument(..., metavar="CALIB", readable=False, help="Calibration JSON written by magyro solve."),
     fmt: str = typer.Option(..., "--format", "-f", help="yaml (a plain, commented YAML file), c (a C99 header with the matrices and apply functions), kalibr (Kalibr's scale-misalignment IMU yaml, exact), px4 (a QGroundControl .params file: gyro offset only, its cost stated) or ardupilot (a Mission Planner / MAVProxy .parm file: COMPASS_OFS/DIA/ODI, INS_GYROFFS, INS_ACCOFFS/ACCSCAL; what ArduPilot cannot hold and its cost stated, also on stderr)."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", readable=False, help="Write here (default: print to the terminal)."),
+    noise: Optional[Path] = typer.Option(None, "--noise", readable=False, help="kalibr: a noise file (magyro noise -o) for Kalibr's noise densities, random walks and update_rate."),
+    rostopic: Optional[str] = typer.Option(None, "--rostopic", help="kalibr with --noise: the IMU's topic (default /imu0)."),
 ):
     """The calibration for other programs: K_g, bias, C_b_m, K, eps, R, h (and K_a, its bias and C_b_a when it has an
     accelerometer) and the model, as YAML (yaml), a C99 header (c), Kalibr's IMU yaml (kalibr), a PX4 .params file
@@ -70,7 +72,12 @@ def export_command(
     from magyro.api import export_file
 
     def action():
-        text = export_file(calibration, fmt, output)
+        if noise is not None or rostopic is not None:
+            from magyro.noise_file import kalibr_export_file
+
+            text = kalibr_export_file(calibration, noise, rostopic, output, fmt)
+        else:
+            text = export_file(calibration, fmt, output)
         if fmt == "ardupilot":   # what the parameters cannot hold, and its cost, where it is not missed
             from magyro.result.calibration import Calibration
             from magyro.result.export_ardupilot import cannot_hold_lines

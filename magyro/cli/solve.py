@@ -18,6 +18,7 @@ def solve(
     gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="rad/s or deg/s (overrides the file's metadata)."),
     mag_unit: Optional[str] = typer.Option(None, "--mag-unit", help="Magnetometer unit label, e.g. uT."),
     gyro_noise_deg_s_sqrt_hz: Optional[float] = typer.Option(None, "--gyro-noise", parser=gyro_noise_density, metavar="DENSITY", help=gyro_noise_help("estimated")),
+    noise: Optional[Path] = typer.Option(None, "--noise", readable=False, help="A noise file (magyro noise -o): its gyro white noise instead of the estimate (not with --gyro-noise)."),
     mag_noise: Optional[float] = typer.Option(None, "--mag-noise", help="Magnetometer noise std, in its unit (default: estimated)."),
     stride: Optional[int] = typer.Option(None, "--stride", min=1, help="One attitude node every N segments, one per gyro or magnetometer sample (default: 12, or 4 below 96 Hz; other strides compile their kernels once)."),
     force: bool = typer.Option(False, "--force", help="Solve even when the motion does not excite every parameter."),
@@ -49,7 +50,13 @@ def solve(
 
     def action():
         bounds = StdBounds(max_std_scale_ppm, max_std_nonorth_deg, max_std_bias_deg_s, max_std_misalignment_deg)
-        options = Options.in_user_units(gyro_noise_deg_s_sqrt_hz, mag_noise, force=force, estimate_time_offset=time_offset,
+        if noise is not None:
+            from magyro.noise_file import gyro_noise_deg_s_sqrt_hz_option
+
+            density = gyro_noise_deg_s_sqrt_hz_option(noise, gyro_noise_deg_s_sqrt_hz)
+        else:
+            density = gyro_noise_deg_s_sqrt_hz
+        options = Options.in_user_units(density, mag_noise, force=force, estimate_time_offset=time_offset,
                                         trim_rests=not keep_rests, split_check=split_check, max_std=bounds,
                                         repairs=Repairs.without(no_repair or []), accelerometer=accelerometer,
                                         gravity_m_s2=gravity)

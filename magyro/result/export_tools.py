@@ -100,11 +100,41 @@ def kalibr_parameters(cal: Calibration) -> dict:
             "M_accel": M_accel, "b_accel": -Ka_inv @ acc.bias_m_s2, "i_to_b": Q.T}
 
 
-def kalibr_text(cal: Calibration, source: str = "") -> str:
-    """Kalibr's IMU yaml (model scale-misalignment), gyroscope block only, every number exact to the double."""
+def kalibr_noise_lines(noise: dict | None, rostopic: str | None, indent: str) -> list[str]:
+    """The keys Kalibr's ImuParameters reads besides the model (kalibr_common/ConfigReader.py: rostopic, a string;
+    update_rate in Hz; the noise densities and random walks, each > 0), from `magyro.noise_allan.kalibr_values`."""
+    if noise is None:
+        return []
+    keys = (("gyroscope_noise_density", "rad/s/sqrt(Hz)"), ("gyroscope_random_walk", "rad/s^2/sqrt(Hz)"),
+            ("accelerometer_noise_density", "m/s^2/sqrt(Hz)"), ("accelerometer_random_walk", "m/s^3/sqrt(Hz)"),
+            ("update_rate", "Hz"))
+    return [f"{indent}rostopic: {json.dumps(str(rostopic or '/imu0'))}",
+            *(f"{indent}{key}: {yaml_number(noise[key])}   # {unit}" for key, unit in keys)]
+
+
+def _kalibr_noise_header(noise: dict | None, text: str) -> str:
+    """With noise: its comment in place of 'no noise densities ... (add yours)', and Kalibr's --imu keys at the top
+    level (its reader reads them there; the imu0 block is the layout of Kalibr's results-imu.yaml)."""
+    if noise is None:
+        return text
+    said = ("# Noise: from magyro noise (the Allan deviation of a still recording), the largest axis of each, as Kalibr "
+            "takes one\n# number per sensor; Kalibr's --imu reads the keys at the top level, repeated under imu0 as "
+            "its results-imu.yaml has them.\n")
+    text = text.replace("no noise densities, random walks or rostopic (add yours to use the\n# file as Kalibr input)",
+                        "the noise below from magyro noise")
+    text = text.replace("no noise densities, random walks or rostopic (add yours\n# to use the file as Kalibr input)",
+                        "the noise below from magyro noise")
+    head, imu = text.split("imu0:\n", 1)
+    return head + said + "\n".join(kalibr_noise_lines(noise, noise.get("rostopic"), "")) + "\nimu0:\n" + imu
+
+
+def kalibr_text(cal: Calibration, source: str = "", noise: dict | None = None, rostopic: str | None = None) -> str:
+    """Kalibr's IMU yaml (model scale-misalignment), gyroscope block only, every number exact to the double; with
+    `noise` (magyro.noise_allan.kalibr_values) and `rostopic` (default /imu0), every key Kalibr's reader needs."""
     p = kalibr_parameters(cal)
+    noise = None if noise is None else {**noise, "rostopic": rostopic}
     if cal.accelerometer is not None:
-        return _kalibr_text_with_accelerometer(cal, p, source)
+        return _kalibr_noise_header(noise, _kalibr_text_with_accelerometer(cal, p, source, noise))
     angle = _rotation_angle_deg(p["C_gyro_i"])
     lines = ["# magyro calibration as Kalibr's IMU yaml, model scale-misalignment (magyro export --format kalibr)",
              f"# source: {_one_line(source)}",
@@ -124,6 +154,7 @@ def kalibr_text(cal: Calibration, source: str = "") -> str:
              '  model: "scale-misalignment"',
              f"  T_i_b: {yaml_array(np.eye(4))}",
              f"  time_offset: {yaml_number(0.0)}",
+             *kalibr_noise_lines(noise, rostopic, "  "),
              *kalibr_gyroscope_lines(p),
              "  magyro:",
              "    # not Kalibr keys: w_m = C_b_m w_i (magnetometer frame); m_m = R (y_m - h), unit norm",
@@ -132,10 +163,10 @@ def kalibr_text(cal: Calibration, source: str = "") -> str:
              f"    R: {yaml_array(cal.R)}",
              f"    h: {yaml_array(cal.h)}",
              ]
-    return "\n".join(lines) + "\n"
+    return _kalibr_noise_header(noise, "\n".join(lines) + "\n")
 
 
-def _kalibr_text_with_accelerometer(cal: Calibration, p: dict, source: str) -> str:
+def _kalibr_text_with_accelerometer(cal: Calibration, p: dict, source: str, noise: dict | None = None) -> str:
     """Kalibr's IMU yaml with its accelerometers block: frame i is the accelerometer's (kalibr_parameters)."""
     acc = cal.accelerometer
     to_b = _rotation_angle_deg(p["i_to_b"])
@@ -164,6 +195,7 @@ def _kalibr_text_with_accelerometer(cal: Calibration, p: dict, source: str) -> s
              '  model: "scale-misalignment"',
              f"  T_i_b: {yaml_array(np.eye(4))}",
              f"  time_offset: {yaml_number(0.0)}",
+             *kalibr_noise_lines(noise, None if noise is None else noise["rostopic"], "  "),
              "  accelerometers:",
              f"    M: {yaml_array(p['M_accel'])}",
              "    # not a Kalibr key: the constant accelerometer bias in Kalibr's sign, m/s^2",
