@@ -389,7 +389,8 @@ def accelerometer_model(cal: Calibration, frame: str, applied: bool) -> str:
 def export_file(calibration_path, fmt: str, output=None) -> str:
     """`magyro export`: a calibration JSON as `fmt` (`magyro.result.export.FORMATS`: yaml, a plain YAML file;
     c, a C99 header with the matrices and apply functions; kalibr, its scale-misalignment IMU yaml; px4, a
-    QGroundControl parameter file), written whole to `output` when given. Returns the text."""
+    QGroundControl parameter file; ardupilot, a Mission Planner / MAVProxy .parm file), written whole to `output`
+    when given. Returns the text."""
     from magyro.io import check_outputs, write_text_atomically
 
     check_outputs([calibration_path], [output])  # before any work: no input overwritten, the output writable
