@@ -49,13 +49,14 @@ def fast_phone():
 
 def test_a_floor_that_rises_with_the_motion_is_a_guess_and_white_noise_is_not(fast_phone):
     session, _ = fast_phone
-    level, is_noise = noise_floor_std(session.gyro_rad_s)
+    level, is_noise = noise_floor_std(session.gyro_rad_s, session.gyro_rate_hz)
     assert not is_noise and floor_follows_motion(session.gyro_rad_s, 4)
+    assert noise_floor_std(session.gyro_rad_s)[1]   # without a rate (or above 100 Hz) the floor is taken as noise
     # the same motion's noise alone, white: the floor is the sensor's, measured
     rng = np.random.default_rng(1)
     white = 0.01 * rng.standard_normal(session.gyro_rad_s.shape)
     assert not floor_follows_motion(white, 4)
-    level_white, is_noise_white = noise_floor_std(white)
+    level_white, is_noise_white = noise_floor_std(white, 25.0)
     assert is_noise_white and level_white == pytest.approx(0.01, rel=0.1)
     # a slow motion at a high rate on the same white noise: the floor is the noise, the same where it turns fast
     t = np.arange(0, 60, 0.01)

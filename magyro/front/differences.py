@@ -39,7 +39,7 @@ def white_noise_std(x: np.ndarray) -> np.ndarray:
 MAX_ORDER = 8
 
 
-def noise_floor_std(x: np.ndarray) -> tuple[np.ndarray, bool]:
+def noise_floor_std(x: np.ndarray, rate_hz: float | None = None) -> tuple[np.ndarray, bool]:
     """(per-column white-noise std, whether it is noise): the levels of the 3rd, 4th, ... differences.
 
     For white noise every order gives the same level; a motion that leaks in shrinks by about (omega dt)^2
@@ -51,8 +51,20 @@ def noise_floor_std(x: np.ndarray) -> tuple[np.ndarray, bool]:
     rms = [float(np.sqrt(np.mean(v**2))) for v in levels]
     for k in range(len(levels) - 1):
         if rms[k] > 0 and rms[k + 1] >= MOTION_FREE_RATIO * rms[k]:
-            return levels[k + 1], not floor_follows_motion(x, k + 4)
+            return levels[k + 1], not (low_rate(rate_hz) and floor_follows_motion(x, k + 4))
     return levels[-1], False
+
+
+LOW_RATE_HZ = 100.0          # the floor is compared with the motion at this rate or below: there a hand's turning
+                             # (to ~5 Hz) leaks into every order; above it (BROAD at 285 Hz, whose floor is 1.9x
+                             # higher where it turns fast) what rises with the turning is the sensor's own, which the
+                             # least squares' variance components read as the room's wander and the gyro level 6.6x
+                             # too large on BROAD 02 without its rests
+
+
+def low_rate(rate_hz: float | None) -> bool:
+    """Is the gyro sampled slowly enough for a hand's motion to show in the differences' floor?"""
+    return rate_hz is not None and rate_hz <= LOW_RATE_HZ
 
 
 FLOOR_WINDOW = 64            # samples a window: a robust level to ~15 % each

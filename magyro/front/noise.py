@@ -44,9 +44,10 @@ def mag_noise_std(y_mag: np.ndarray) -> float:
     return float(np.sqrt(np.mean(white_noise_std(y_mag) ** 2)))
 
 
-def floor_level(x: np.ndarray) -> tuple[float, str]:
-    """(RMS over the axes of the differences' noise floor, DIFFERENCES when it is noise else GUESS): the gyro's."""
-    std, is_noise = noise_floor_std(x)
+def floor_level(x: np.ndarray, rate_hz: float | None = None) -> tuple[float, str]:
+    """(RMS over the axes of the differences' noise floor, DIFFERENCES when it is noise else GUESS): the gyro's;
+    at `rate_hz` (`differences.LOW_RATE_HZ` or below) a floor that rises with the motion is a guess."""
+    std, is_noise = noise_floor_std(x, rate_hz)
     return float(np.sqrt(np.mean(std**2))), DIFFERENCES if is_noise else GUESS
 
 
@@ -159,7 +160,7 @@ def noise_levels(session: Session, options: Options, found: rests.Rests) -> Nois
         gyro_source = mag_source = REST
     else:
         mag_sample, mag_source = third_difference_level(session.mag)
-        gyro_sample, gyro_source = floor_level(session.gyro_rad_s)
+        gyro_sample, gyro_source = floor_level(session.gyro_rad_s, rate)
         mag_eff, density = mag_sample, gyro_sample / np.sqrt(rate)
         source = "differences (white noise assumed" + ("" if gyro_source == mag_source == DIFFERENCES else
                                                       "; the motion shows in them: a guess") + ")"
