@@ -92,7 +92,7 @@ def recording(problem_name: str, kind: str, seed: int):
     base = load_problem(problem_name)
     motion = pose_motion(seed) if kind == "poses" else pause_motion(seed)
     duration = sum(t.seconds for t in motion.turns)
-    acc = dataclasses.replace(base.accelerometer, hand_translation_m=0.0)
+    acc = dataclasses.replace(base.accelerometer, hand_while_turning=True)   # the problem's hand, while turning only
     problem = dataclasses.replace(base, motion=motion, duration_s=duration, accelerometer=acc)
     session, _ = simulate(problem, seed)
     return problem, session
