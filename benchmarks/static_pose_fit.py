@@ -2,7 +2,8 @@
 
     python benchmarks/static_pose_fit.py [--seeds 6] [--problems paper-table1-acc,phone-module-acc] [--out FILE]
 
-Recordings (simulated, `magyro.studies.simulate`, the problem's sensors, turned in place):
+Recordings (simulated, `magyro.studies.simulate`, the problem's sensors; the problem's hand moves the device, by its
+hand_translation_m, only while it turns: `[accelerometer] hand_while_turning`, the held poses truly still):
   * poses: 12 poses whose gravity directions are the icosahedron's vertices, each held 4 s, a 3 s turn between
     (the static method's home ground);
   * pauses: free-hand turns (random axes, 60-150 deg in 1-2 s) stopped 10 times for 4 s.
@@ -15,7 +16,9 @@ is imu_tk's triangular misalignment; bias) that make every mean's length g (scip
 Error of a calibration: the whole specific-force map over 26 directions u (cube faces, edges, corners): for
 f = g u in the accelerometer's frame, raw y = K_true^-1 (f - eps_true), calibrated K y + eps; the worst |error| in
 ppm of g. magyro's and the static fit's maps share the frame (upper-triangular K), so they compare as they are.
-Printed per recording: both errors and their ratio, and how many stills the static detector found.
+magyro twice: with only the end rests (`Options(stills=False)`, as before issue 39: `magyro_ends_*`) and with every
+still (`magyro.front.stills`: `magyro_*`). Printed per recording: the errors and their ratios to the static fit's,
+magyro's worst |error| / std over K_a and the bias, and how many stills each detector found.
 """
 from __future__ import annotations
 
