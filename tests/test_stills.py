@@ -10,8 +10,10 @@ import pytest
 
 from magyro import calibrate
 from magyro.front.rests import find_rests
-from magyro.front.stills import MIN_STILL_S, distinct_poses, find_stills
+from magyro.errors import InputError
+from magyro.front.stills import MIN_STILL_S, Stills, distinct_poses, find_stills
 from magyro.options import Options
+from magyro.result.calibration import Calibration
 from magyro.studies.hand import truth_acceleration
 from magyro.studies.scenario import Motion, Turn, load_problem
 from magyro.studies.simulate import simulate
@@ -115,6 +117,15 @@ def test_a_recording_without_middle_stills_calibrates_bit_for_bit_as_with_the_st
     off = calibrate(session, Options(accelerometer=True, stills=False))
     assert on.stills is not None and on.stills.segments_s == []
     assert without_timings(on.to_dict()) == without_timings(off.to_dict())   # the same machine, the same path
+    assert off.stills is None and "stills" not in off.to_dict()
+    assert Calibration.from_json(on.to_json()).stills == on.stills
+
+
+def test_a_stills_entry_that_is_none_is_refused_naming_it():
+    for bad in ({"segments_s": [[1.0]]}, {"segments_s": "x"}, {"poses": 2.5}, {"seconds": "3"}):
+        with pytest.raises(InputError, match="stills"):
+            Stills.from_dict(bad)
+    assert Stills.from_dict({"segments_s": [[1, 4]], "seconds": 3, "poses": 2}) == Stills([(1.0, 4.0)], 3.0, 2)
 
 
 def map_error_ppm(K, eps, K_true, eps_true, g_m_s2: float) -> float:

@@ -47,9 +47,20 @@ class Stills:
 
     @classmethod
     def from_dict(cls, data: dict) -> "Stills":
-        segments = [tuple(map(float, s)) for s in data.get("segments_s", [])]
-        poses = data.get("poses")
-        return cls(segments, float(data.get("seconds", 0.0)), None if poses is None else int(poses))
+        """Read back from a calibration JSON's `stills`; InputError (exit 2) naming it when it is no such entry."""
+        try:
+            segments = [(float(a), float(b)) for a, b in data.get("segments_s", [])]
+            poses = data.get("poses")
+            if isinstance(poses, bool) or not (poses is None or isinstance(poses, int)):
+                raise TypeError(poses)
+            seconds = data.get("seconds", 0.0)
+            if isinstance(seconds, (bool, str)):
+                raise TypeError(seconds)
+            return cls(segments, float(seconds), poses)
+        except (TypeError, ValueError):
+            from magyro.errors import InputError
+
+            raise InputError("stills must be {count, segments_s: [[start, end], ...], seconds, poses}") from None
 
 
 def smoothed_noise_band(t_s: np.ndarray, white_std: np.ndarray) -> np.ndarray:
