@@ -143,9 +143,12 @@ def test_the_stills_of_a_twelve_pose_recording_make_the_accelerometer_better_and
     truth = problem.accelerometer
     errors = {}
     for stills in (False, True):
-        a = calibrate(session, Options(accelerometer=True, stills=stills)).accelerometer
+        cal = calibrate(session, Options(accelerometer=True, stills=stills))
+        a = cal.accelerometer
         errors[stills] = map_error_ppm(a.K_a, a.bias_m_s2, truth.K_a, truth.bias_m_s2, truth.g_m_s2)
     assert errors[True] < errors[False], errors
+    assert "stills between the end rests: 11," in cal.table() and "13 distinct poses" in cal.table()
+    assert cal.to_dict()["stills"]["count"] == 11
     iu = np.triu_indices(3)
     z = np.concatenate([((a.K_a - truth.K_a) / np.where(a.std_K_a > 0, a.std_K_a, 1.0))[iu],
                         (a.bias_m_s2 - truth.bias_m_s2) / a.std_bias_m_s2])
