@@ -86,6 +86,19 @@ def test_the_hand_while_turning_leaves_the_held_poses_still_and_moves_the_turns(
     assert np.max(np.linalg.norm(truth_acceleration(swaying, t_s, 4), axis=1)[holding]) > 0.01
 
 
+def test_hand_while_turning_is_read_from_the_problem_file_and_must_be_true_or_false():
+    from magyro.io.toml_file import read_toml
+    from magyro.studies.scenario import parse_problem, resolve_problem_path
+
+    raw = read_toml(resolve_problem_path("phone-module-acc"))
+    assert parse_problem(raw).accelerometer.hand_while_turning is False
+    raw["accelerometer"]["hand_while_turning"] = True
+    assert parse_problem(raw).accelerometer.hand_while_turning is True
+    raw["accelerometer"]["hand_while_turning"] = "yes"
+    with pytest.raises(InputError, match="hand_while_turning"):
+        parse_problem(raw)
+
+
 def test_a_device_turning_all_along_has_no_still():
     problem = load_problem("phone-module-acc")
     session, _ = simulate(dataclasses.replace(problem, duration_s=30.0), 1)
