@@ -18,7 +18,7 @@ f = g u in the accelerometer's frame, raw y = K_true^-1 (f - eps_true), calibrat
 ppm of g. magyro's and the static fit's maps share the frame (upper-triangular K), so they compare as they are.
 magyro twice: with only the end rests (`Options(stills=False)`, as before issue 39: `magyro_ends_*`) and with every
 still (`magyro.front.stills`: `magyro_*`). Printed per recording: the errors and their ratios to the static fit's,
-magyro's worst |error| / std over K_a and the bias, and how many stills each detector found.
+magyro's worst |error| / std over K_a, the bias and C_b_a, and how many stills each detector found.
 """
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ import subprocess
 import numpy as np
 from scipy.optimize import least_squares
 
-from magyro import calibrate
+from magyro import calibrate, so3
 from magyro.errors import MagyroError
 from magyro.options import Options
 from magyro.studies.scenario import Motion, Turn, load_problem
@@ -173,11 +173,12 @@ def compare(problem_name: str, kind: str, seed: int) -> dict:
 
 
 def worst_z(a, truth) -> float:
-    """The largest |estimate - truth| / std over K_a's six entries and the bias (the frame's three angles, which the
-    static fit has not, are left out)."""
+    """The largest |estimate - truth| / std over K_a's six entries, the bias and the frame's three angles (d with
+    C_b_a(true) = C_b_a(est) Exp(d), which the static fit has not)."""
     iu = np.triu_indices(3)
-    err = np.concatenate([(a.K_a - truth.K_a)[iu], a.bias_m_s2 - truth.bias_m_s2])
-    std = np.concatenate([np.asarray(a.std_K_a)[iu], np.asarray(a.std_bias_m_s2)])
+    d_deg = np.rad2deg(so3.log_so3(np.asarray(a.C_b_a).T @ truth.C_b_a))
+    err = np.concatenate([(a.K_a - truth.K_a)[iu], a.bias_m_s2 - truth.bias_m_s2, d_deg])
+    std = np.concatenate([np.asarray(a.std_K_a)[iu], np.asarray(a.std_bias_m_s2), np.asarray(a.std_misalignment_deg)])
     return float(np.max(np.abs(err) / std))
 
 
