@@ -8,7 +8,7 @@ import itertools
 import numpy as np
 import pytest
 
-from magyro import calibrate
+from magyro import calibrate, so3
 from magyro.front.rests import find_rests
 from magyro.errors import InputError
 from magyro.front.stills import MIN_STILL_S, Stills, distinct_poses, find_stills
@@ -163,6 +163,7 @@ def test_the_stills_of_a_twelve_pose_recording_make_the_accelerometer_better_and
     assert "stills between the end rests: 11," in cal.table() and "13 distinct poses" in cal.table()
     assert cal.to_dict()["stills"]["count"] == 11
     iu = np.triu_indices(3)
+    d_deg = np.rad2deg(so3.log_so3(a.C_b_a.T @ truth.C_b_a))     # C_b_a(true) = C_b_a(est) Exp(d)
     z = np.concatenate([((a.K_a - truth.K_a) / np.where(a.std_K_a > 0, a.std_K_a, 1.0))[iu],
-                        (a.bias_m_s2 - truth.bias_m_s2) / a.std_bias_m_s2])
+                        (a.bias_m_s2 - truth.bias_m_s2) / a.std_bias_m_s2, d_deg / a.std_misalignment_deg])
     assert np.max(np.abs(z)) < 4.0, z
