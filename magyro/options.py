@@ -83,6 +83,8 @@ class Options:
                                             # has ax ay az (left out, saying why, if it cannot be calibrated); True
                                             # required (exit 2 without ax ay az, exit 3 past its bound); False never
     gravity_m_s2: float = STANDARD_GRAVITY_M_S2   # the local gravity the accelerometer is calibrated against
+    stills: bool = True                     # poses held still mid-recording count as rests for the accelerometer
+                                            # (magyro.front.stills, issue 39); False: only the end rests do
 
     @classmethod
     def in_user_units(cls, gyro_noise_deg_s_sqrt_hz: float | None = None, mag_noise_std: float | None = None,

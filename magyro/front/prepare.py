@@ -1,7 +1,8 @@
 """The front end every method shares: from a loaded session to what a solver starts from.
 
     1. rests found at both ends, noise levels from them (`magyro.front.noise`),
-       the session trimmed to its moving span (the paper excludes the rests)
+       the session trimmed to its moving span (the paper excludes the rests);
+       the stills between them found (`magyro.front.stills`: the accelerometer's rests too, not trimmed)
     2. the magnetometer ellipsoid (paper step 1, `magyro.front.ellipsoid`)
     3. the gyro unit check: the gyro must turn the field as fast as the
        magnetometer sees it turn
@@ -18,6 +19,7 @@ import numpy as np
 from magyro import so3
 from magyro.errors import InputError, MagyroError, ObservabilityError
 from magyro.front import causes, ellipsoid, rests
+from magyro.front.stills import Stills, find_stills
 from magyro.front.noise import NoiseLevels, noise_levels
 from magyro.observability.gate import ObservabilityAnalysis, analyse
 from magyro.options import Options
@@ -40,6 +42,13 @@ class Prepared:
     noise_source: str = ""
     levels: NoiseLevels | None = None   # where each level came from (given, rest, guess)
     untrimmed: Session | None = None    # the session before its end rests were trimmed (the accelerometer's rests)
+    stills: Stills | None = None        # poses held still between the end rests (None with Options.stills off)
+
+    @property
+    def accelerometer_rests_s(self) -> list[tuple[float, float]]:
+        """The spans the accelerometer reads as rests: the end rests and the stills between them, in time order."""
+        ends = list(self.rests.segments_s) if self.rests is not None else []
+        return sorted(ends + list(self.stills.segments_s)) if self.stills is not None else ends
 
     @property
     def field_m(self) -> np.ndarray:
@@ -184,4 +193,5 @@ def prepare(session: Session, options: Options) -> Prepared:
         raise ObservabilityError(
             f"the motion does not excite every gyro parameter: {analysis.summary()} (--force solves anyway)", analysis
         )
-    return Prepared(session, sigma_mag, density, fit, analysis, found, levels.source, levels, untrimmed)
+    stills = find_stills(untrimmed, found) if options.stills else None
+    return Prepared(session, sigma_mag, density, fit, analysis, found, levels.source, levels, untrimmed, stills)

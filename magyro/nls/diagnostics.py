@@ -209,7 +209,7 @@ def assemble(problem: JointProblem, prep: Prepared, grid: Grid, sol: Solution, r
         fit=fit,
         time_offset_s=tau,
         time_offset_estimated=problem.estimate_time_offset,
-        rests=rest_check(prep.rests, Kg, C.T @ eps),
+        rests=rest_check(prep.rests, Kg, C.T @ eps), stills=prep.stills if problem.accelerometer else None,
         warnings=warnings_for(fit, a, C, prep.fit) + guessed_level_warnings(prep, sol),
         accelerometer=accelerometer_result(problem, theta, g, cov_theta) if problem.accelerometer else None,
     )

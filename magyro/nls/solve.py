@@ -144,7 +144,7 @@ def linearise(prep: Prepared, grid: Grid, options: Options, search_lag: bool = T
         if s.acc_m_s2 is None or len(s.acc_m_s2) < 2:
             raise InputError("--accelerometer: the session has no accelerometer (columns ax ay az, m/s^2); import it "
                              "with its accelerometer, or solve without --accelerometer")
-        acc = accelerometer_start(prep.untrimmed or s, s, grid, C, lin0.K, prep.rests.segments_s if prep.rests else [],
+        acc = accelerometer_start(prep.untrimmed or s, s, grid, C, lin0.K, prep.accelerometer_rests_s,
                                   options.gravity_m_s2)
     return Linearisation(S0, prep.fit.h, lin0.K, lin0.eps, m0, C, float(np.mean(np.diag(S0))), lin0.time_offset_s,
                          acc)

@@ -11,6 +11,7 @@ from magyro import so3
 from magyro.errors import InputError
 from magyro.front.ellipsoid import calibrated_field
 from magyro.front.findings import RecordingCheck
+from magyro.front.stills import POSE_APART_DEG, Stills
 from magyro.result.accelerometer import HAND_REACH_M, AccelerometerCalibration
 from magyro.result.consistency_record import SplitCheck
 from magyro.result.fit import FilterFit, LeastSquaresFit, fit_from_dict
@@ -62,6 +63,7 @@ class Calibration:
     trajectory: AttitudeTrajectory | None = None   # the least squares' attitudes, when asked for (not in the JSON)
     std_white: Std | None = None   # the least squares' std from the white-noise weights alone (`std` adds the room)
     accelerometer: AccelerometerCalibration | None = None   # when the accelerometer joined the least squares
+    stills: Stills | None = None   # the poses held still between the end rests (magyro.front.stills, issue 39)
 
     @property
     def bias_deg_s(self) -> np.ndarray:
@@ -135,6 +137,7 @@ class Calibration:
                     **({"accelerometer": self.accelerometer.std_dict()} if self.accelerometer is not None else {})},
             **({"std_white": self.std_white.to_dict()} if self.std_white is not None else {}),
             "rests": None if self.rests is None else self.rests.to_dict(),
+            **({"stills": self.stills.to_dict()} if self.stills is not None else {}),
             "warnings": list(self.warnings),
             "observability": self.observability.to_dict(),
             "solver": self.solver.to_dict(),
@@ -199,6 +202,10 @@ class Calibration:
         if self.rests is not None:
             lines.append(f"bias from {self.rests.seconds:.1f} s of rest (deg/s)  "
                          + "  ".join(f"{v:+8.4f}" for v in self.rests.bias_deg_s))
+        if self.stills is not None and self.stills.segments_s:
+            lines.append(f"stills between the end rests: {len(self.stills.segments_s)}, {self.stills.seconds:.1f} s in all"
+                         + ("" if self.stills.poses is None else
+                            f"; {self.stills.poses} distinct poses with the end rests (gravity > {POSE_APART_DEG:g} deg apart)"))
         if self.consistency is not None and self.consistency.compared:
             c = self.consistency
             lines.append(f"split-half check: the halves differ by {c.rms_z:.1f} sigma RMS, at most {c.max_abs_z:.1f} "
@@ -318,4 +325,5 @@ def _calibration_from_checked(data: dict) -> Calibration:
         std_white=None if data.get("std_white") is None else Std.from_dict(data["std_white"], "std_white"),
         accelerometer=None if data.get("accelerometer") is None else AccelerometerCalibration.from_dict(
             data["accelerometer"], (std or {}).get("accelerometer")),
+        stills=None if not isinstance(data.get("stills"), dict) else Stills.from_dict(data["stills"]),
     )

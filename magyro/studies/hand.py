@@ -1,7 +1,10 @@
 """The hand's translation of a simulated session and what the accelerometer reads (see magyro.studies.simulate).
 
 The device's position p^w(t) is, on each world axis, the rotation's window times a few sinusoids in the motion's
-band, drawn from ``default_rng([motion.seed, TRANSLATION_STREAM, seed])``; its acceleration is analytic.
+band, drawn from ``default_rng([motion.seed, TRANSLATION_STREAM, seed])``; its acceleration is analytic. With
+``[accelerometer] hand_while_turning`` (a "turns" motion), the window is 1 while the device turns and 0 over the
+poses held between the turns, ramped in and out inside each run of turns (`turning_spans`): a person's hand that
+holds a pose still, as the static-pose method assumes (issue 39).
 """
 from __future__ import annotations
 
@@ -48,6 +51,7 @@ class Translation:
     start_s: float
     stop_s: float
     ramp_s: float
+    spans_s: tuple = ()          # with hand_while_turning: (start, stop, ramp) of each run of turns, the window's
 
 
 def translation_span(problem: Scenario) -> tuple[float, float, float]:
@@ -60,6 +64,36 @@ def translation_span(problem: Scenario) -> tuple[float, float, float]:
     turning = np.flatnonzero(st.angle_rad != 0.0)
     start, stop = float(st.start_s[turning[0]]), float(st.start_s[turning[-1]] + st.seconds[turning[-1]])
     return start, stop, min(m.ramp_s, 0.5 * (stop - start))
+
+
+TURNING_RAMP_S = 1.0   # hand_while_turning: the window ramps in (and out) over this much of each run of turns at most
+
+
+def turning_spans(problem: Scenario) -> tuple:
+    """((start, stop, ramp), ...) of every run of back-to-back turns of a "turns" motion: the hand moves the device
+    there only (hand_while_turning), ramping in over its first and out over its last TURNING_RAMP_S (at most half
+    the run: a hand that starts and stops with the turn), so the window is C^2 and 0 over every held pose."""
+    st = turn_steps(problem)
+    turning = st.angle_rad != 0.0
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], turning.astype(np.int8), [0]])))
+    spans = []
+    for a, b in zip(edges[::2], edges[1::2]):
+        start, stop = float(st.start_s[a]), float(st.start_s[b - 1] + st.seconds[b - 1])
+        spans.append((start, stop, min(TURNING_RAMP_S, 0.5 * (stop - start))))
+    return tuple(spans)
+
+
+def translation_window(tr: Translation, t: np.ndarray):
+    """The translation's window and its first and second time derivatives: the rotation's, or with `spans_s` the
+    sum of each run of turns' own (the runs do not overlap)."""
+    if not tr.spans_s:
+        return window_derivatives(t, tr.start_s, tr.stop_s, tr.ramp_s)
+    w, wdot, wddot = np.zeros(len(t)), np.zeros(len(t)), np.zeros(len(t))
+    for start, stop, ramp in tr.spans_s:
+        inside = (t >= start) & (t <= stop)
+        parts = window_derivatives(t[inside], start, stop, ramp)
+        w[inside], wdot[inside], wddot[inside] = parts
+    return w, wdot, wddot
 
 
 def hand_translation(problem: Scenario, hand_seed: int | None = None) -> Translation | None:
@@ -77,7 +111,8 @@ def hand_translation(problem: Scenario, hand_seed: int | None = None) -> Transla
         phases[i] = rng.uniform(0.0, 2.0 * np.pi, m.components)
         weights[i] = rng.uniform(0.5, 1.0, m.components)
     start, stop, ramp = translation_span(problem)
-    unit = Translation(weights, freqs, phases, start, stop, ramp)
+    spans = turning_spans(problem) if acc.hand_while_turning and m.kind == "turns" else ()
+    unit = Translation(weights, freqs, phases, start, stop, ramp, spans)
     lo, hi = (start, stop) if ramp > 0 else (0.0, problem.duration_s)
     grid = np.linspace(lo, hi, int(math.ceil((hi - lo) * m.band_hz[1] * TRANSLATION_PEAK_GRID)) + 2)
     peak = np.max(np.abs(translation_derivatives(unit, grid)[0]), axis=0)
@@ -89,7 +124,7 @@ def translation_derivatives(tr: Translation, t: np.ndarray) -> tuple[np.ndarray,
     """(position p^w (N, 3) in m, acceleration p''^w (N, 3) in m/s^2) at the times t, analytic."""
     p, a = np.empty((len(t), 3)), np.empty((len(t), 3))
     if tr.ramp_s > 0:
-        w, wdot, wddot = window_derivatives(t, tr.start_s, tr.stop_s, tr.ramp_s)
+        w, wdot, wddot = translation_window(tr, t)
     for i in range(3):
         omega = 2.0 * np.pi * tr.freqs_hz[i]
         arg = np.outer(t, omega) + tr.phases_rad[i]

@@ -27,6 +27,9 @@ class Accelerometer:
     noise_density_ug_sqrt_hz: float      # white noise density, micro-g per sqrt(Hz)
     g_m_s2: float = STANDARD_GRAVITY_M_S2   # the local gravity's magnitude
     hand_translation_m: float = 0.0      # peak of the device's position on each world axis (0: turned in place)
+    hand_while_turning: bool = False     # a "turns" motion: the hand moves the device only while it turns, the held
+                                         # poses truly still (magyro.studies.hand.turning_spans); False: it sways
+                                         # through them too
 
     @property
     def C_b_a(self) -> np.ndarray:
@@ -42,7 +45,8 @@ class Accelerometer:
 
 
 ACCELEROMETER_KEYS = {"K_a": True, "bias_m_s2": True, "misalignment_euler_deg": False,
-                      "noise_density_ug_sqrt_hz": True, "g_m_s2": False, "hand_translation_m": False}
+                      "noise_density_ug_sqrt_hz": True, "g_m_s2": False, "hand_translation_m": False,
+                      "hand_while_turning": False}
 
 
 def _parse_accelerometer(acc: dict, where: str) -> Accelerometer:
@@ -54,4 +58,13 @@ def _parse_accelerometer(acc: dict, where: str) -> Accelerometer:
         noise_density_ug_sqrt_hz=_non_negative(acc["noise_density_ug_sqrt_hz"], where, "noise_density_ug_sqrt_hz"),
         g_m_s2=_positive(acc.get("g_m_s2", STANDARD_GRAVITY_M_S2), where, "g_m_s2"),
         hand_translation_m=_non_negative(acc.get("hand_translation_m", 0.0), where, "hand_translation_m"),
+        hand_while_turning=_flag(acc.get("hand_while_turning", False), where, "hand_while_turning"),
     )
+
+
+def _flag(value, where: str, key: str) -> bool:
+    if not isinstance(value, bool):
+        from magyro.errors import InputError
+
+        raise InputError(f"{where}: {key} must be true or false, not {value!r}")
+    return value
