@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from magyro.observability.matrix import information_integral, trapezoid_weights
-from magyro.session import hole_steps
+from magyro.session import hole_spans_s
 from magyro.text import significant
 
 FLOOR_FACTOR = 10.0
@@ -257,8 +257,7 @@ def holes_cause(t_gyro_s) -> str:
     t = np.asarray(t_gyro_s, dtype=float)
     if len(t) < 3 or not t[-1] > t[0]:
         return ""
-    steps = np.diff(t)
-    share = float(np.sum(steps[hole_steps(t)]) / (t[-1] - t[0]))
+    share = sum(b - a for a, b in hole_spans_s(t)) / (t[-1] - t[0])
     if not share > HOLES_NAMED_ABOVE:
         return ""
     return (f"; the gyro record has holes over {100 * share:.0f} % of its span, which are never integrated across: "

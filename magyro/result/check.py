@@ -24,7 +24,7 @@ from magyro import so3
 from magyro.errors import SolverError
 from magyro.front.ellipsoid import calibrated_field
 from magyro.front.initial import turning_misfit_ratio
-from magyro.session import hole_steps
+from magyro.session import hole_spans_s, overlaps_a_hole
 
 MAX_TURNING_MISFIT = 1.5      # 0.1 s windows: converged solves of either method stay within 1.12
 LONG_WINDOW_S = 1.0
@@ -96,21 +96,17 @@ def field_in_start_frame(moving, cal, rates_b_rad_s: np.ndarray) -> tuple[np.nda
     return t_s, np.einsum("nij,nj->ni", Phi, field_b)
 
 
-def field_direction_drift_deg(t_s: np.ndarray, w: np.ndarray, window_s: float,
-                              holes_s: np.ndarray | None = None) -> float:
+def field_direction_drift_deg(t_s: np.ndarray, w: np.ndarray, window_s: float, holes_s=()) -> float:
     """RMS angle, deg, that the field in the start frame (`field_in_start_frame`) turns over `window_s` windows,
     one starting at every magnetometer instant: the dead reckoning's error across the field over the window,
-    with the magnetometer's noise at both ends. Windows that hold a gyro hole (`holes_s`, (k, 2) spans) are left
+    with the magnetometer's noise at both ends. Windows that hold a gyro hole (`holes_s`, `hole_spans_s`) are left
     out: across a hole neither gyro says how the device turned (BROAD with a 1-30 s hole cut out read 1.00-1.05,
     a right calibration refused). nan when no window is left."""
     if len(t_s) < 2 or t_s[-1] - t_s[0] <= window_s:
         return float("nan")
     end = np.searchsorted(t_s, t_s + window_s)
     start = np.flatnonzero(end < len(t_s))
-    if holes_s is not None and len(holes_s):
-        t0, t1 = t_s[start], t_s[end[start]]
-        crossed = np.any((holes_s[:, 0][None, :] < t1[:, None]) & (holes_s[:, 1][None, :] > t0[:, None]), axis=1)
-        start = start[~crossed]
+    start = start[~overlaps_a_hole(t_s[start], t_s[end[start]], holes_s)]
     if len(start) == 0:
         return float("nan")
     cos = np.clip(np.sum(w[start] * w[end[start]], axis=1), -1.0, 1.0)
@@ -123,9 +119,7 @@ def raw_gyro_drift_ratios(moving, cal, windows_s=DRIFT_WINDOWS_S) -> dict[float,
     as far as the magnetometer can tell (nan: the recording is shorter than the window)."""
     calibrated = field_in_start_frame(moving, cal, cal.apply(moving.gyro_rad_s)[0])
     raw = field_in_start_frame(moving, cal, np.asarray(moving.gyro_rad_s, dtype=float))
-    t_g = np.asarray(moving.t_gyro_s, dtype=float)
-    at = np.flatnonzero(hole_steps(t_g))
-    holes_s = np.stack([t_g[at], t_g[at + 1]], axis=1) if len(at) else None
+    holes_s = hole_spans_s(moving.t_gyro_s)
     out = {}
     for window_s in windows_s:
         drift_raw = field_direction_drift_deg(*raw, window_s, holes_s)
