@@ -33,7 +33,7 @@ from magyro.nls.method import NLS
 from magyro.observability.advice import weak_directions
 from magyro.observability.gate import (WELL_CONDITIONED, accuracy_shortfalls, ObservabilityAnalysis, cumulative_noise_matrix,
                                        directional_rank, holes_cause, too_weak_reason)
-from magyro.observability.prediction import field_fault, prediction_stride, predicted_accuracy  # noqa: F401  (kept importable here)
+from magyro.observability.prediction import prediction_stride, predicted_accuracy, refuse_a_field_fault  # noqa: F401  (kept importable here)
 from magyro.observability.gravity import observe_accelerometer
 from magyro.observability.matrix import cumulative_information, trapezoid_weights
 from magyro.observability.report import (SPHERE_BANDS, SPHERE_SECTORS, sphere_cell, unit_rows, Coverage, ObservabilityReport, Targets,
@@ -203,9 +203,7 @@ def predict(prep: Prepared | None, analysis: ObservabilityAnalysis, options: Opt
             raise
         return None, {"stride": prediction_stride(prep.session, method),
                       "note": f"no prediction for a rank-deficient session ({e})"}
-    fault = field_fault(prep, options, method, predicted)   # the field's fault, not the motion's: as the solve says
-    if fault is not None and not options.force:
-        raise fault
+    refuse_a_field_fault(prep, options, method, predicted)   # the field's fault, not the motion's: as the solve says
     std, disturbance = predicted.std, predicted.disturbance
     info = {"stride": predicted.stride, "seconds": predicted.seconds,
             "method": "Gauss-Newton information of the joint problem at the initial estimate, trajectory "

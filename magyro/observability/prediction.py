@@ -107,8 +107,12 @@ def prediction_needed(prep: Prepared, options: Options) -> bool:
         return True
     if field_wander_fraction(prep) > SCREEN_WANDER:
         return True
-    bias = prep.rests.gyro_mean_rad_s if prep.rests is not None else None
-    return min(turning(prep.session, bias).turn_deg) < SCREEN_TURN_DEG
+    return min(prepared_turning(prep).turn_deg) < SCREEN_TURN_DEG
+
+
+def prepared_turning(prep: Prepared):
+    """How the gyro, less the rests' bias when there are rests, says the device turned (`causes.turning`)."""
+    return turning(prep.session, prep.rests.gyro_mean_rad_s if prep.rests is not None else None)
 
 
 def excitation_gate(prep: Prepared, options: Options, method=None) -> list[str]:
@@ -119,11 +123,16 @@ def excitation_gate(prep: Prepared, options: Options, method=None) -> list[str]:
     if not bounded(options) or not prediction_needed(prep, options):
         return []
     predicted = predicted_accuracy(prep, options, method)
+    refuse_a_field_fault(prep, options, method, predicted)
+    wander = None if predicted.disturbance is None else predicted.disturbance.std_fraction
+    return accuracy_gate(predicted.std, options, wander, holes_cause(prep.session.t_gyro_s))
+
+
+def refuse_a_field_fault(prep: Prepared, options: Options, method, predicted: PredictedAccuracy) -> None:
+    """Raise `field_fault`'s InputError (exit 2) unless `options.force` (then the motion's verdict speaks)."""
     fault = field_fault(prep, options, method, predicted)
     if fault is not None and not options.force:
         raise fault
-    wander = None if predicted.disturbance is None else predicted.disturbance.std_fraction
-    return accuracy_gate(predicted.std, options, wander, holes_cause(prep.session.t_gyro_s))
 
 
 FIELD_FAULT_WANDER = 0.01   # a wander below 1 % of the field is never named as the field's fault
@@ -141,8 +150,7 @@ def field_fault(prep: Prepared, options: Options, method, predicted: PredictedAc
     shortfalls = accuracy_shortfalls(predicted.std, options.max_std)
     if not shortfalls or wander is None or not wander > FIELD_FAULT_WANDER:
         return None
-    bias = prep.rests.gyro_mean_rad_s if prep.rests is not None else None
-    motion = turning(prep.session, bias)
+    motion = prepared_turning(prep)
     cells = np.unique(sphere_cell(prep.field_m)).size / (SPHERE_BANDS * SPHERE_SECTORS)
     if not (motion.every_axis and cells >= FIELD_FAULT_SPHERE):
         return None
