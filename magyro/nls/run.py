@@ -59,7 +59,6 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
     disagreement_deg = start_disagreement_deg(prep, grid, lin)
     first_density = first_gyro_density(prep, disagreement_deg)
     sol = solve_passes(problem, prep, lin, method, level_estimator(problem, prep, lin), first_density=first_density)
-    sol.stats["start_disagreement_deg"] = disagreement_deg
     hand = None
     if sol.hand_found:   # its first pass measured the hand: the passes go on with the hand's velocity as states
         hand = solved_hand_motion(problem, lin, sol)
@@ -75,7 +74,7 @@ def calibrate_nls(session: Session, options: Options | None = None, method: NLS 
             f"--method ekf --force "
             f"gives an estimate whose std shows what is missing. {prep.analysis.summary()}", prep.analysis)
     if not (np.isfinite(decrement) and decrement < MAX_DECREMENT):
-        raise SolverError(not_converged_message(sol, decrement, prep, first_density))
+        raise SolverError(not_converged_message(sol, decrement, prep, first_density, disagreement_deg))
     sol.stats["gauss_newton_decrement"] = decrement
     if problem.accelerometer and not problem.hand:
         hand = solved_hand_motion(problem, lin, sol)
@@ -167,13 +166,14 @@ def hand_state_details(problem: JointProblem, sol) -> dict:
     return {"sigma_v_m_s": prior.sigma_v_m_s, "tau_s": prior.tau_s, "reach_m": hand_reach_m(problem, sol.x)}
 
 
-def not_converged_message(sol, decrement: float, prep: Prepared | None = None, first_density: float | None = None) -> str:
+def not_converged_message(sol, decrement: float, prep: Prepared | None = None, first_density: float | None = None,
+                          disagreement_deg: float | None = None) -> str:
     """Why the solve is refused (exit 1), with the evidence and what was tried: never a printed nan."""
     still = (f"a further Gauss-Newton step would still reduce chi^2 by {significant(decrement)}" if np.isfinite(decrement) else
              "the Gauss-Newton step cannot be computed there: the information is singular or not finite")
     return (f"the solver did not converge: it {solver_outcome(sol.stats['return_status'])} after "
             f"{sol.stats['iter_count']} iterations{passes_said(getattr(sol, 'passes', 1))} "
-            f"({still}); tried: {what_was_tried(sol, prep, first_density)}; the data do not fit the model at the "
+            f"({still}); tried: {what_was_tried(prep, first_density, disagreement_deg)}; the data do not fit the model at the "
             f"point it reached: a field that is not homogeneous, a clock that is not steady or a gyro that saturates "
             f"are the usual causes (magyro check looks for the last two)")
 
@@ -183,11 +183,11 @@ def passes_said(passes: int) -> str:
     return f" in {passes} passes" if passes > 1 else ""
 
 
-def what_was_tried(sol, prep: Prepared | None, first_density: float | None) -> str:
+def what_was_tried(prep: Prepared | None, first_density: float | None, disagreement_deg: float | None) -> str:
     """The start and the weighting the solve went from, in words (for its refusal)."""
-    far = getattr(sol, "stats", {}).get("start_disagreement_deg")
     start = ("the gyro integrated with the linear estimate (paper eq. 13)"
-             + ("" if far is None else f", its field directions {far:.0f} deg off the measured ones (90th percentile)"))
+             + ("" if disagreement_deg is None else
+                f", its field directions {disagreement_deg:.0f} deg off the measured ones (90th percentile)"))
     if first_density is not None and prep is not None:
         weights = (f"the gyro's guessed noise level started {1 / LOW_START_FACTOR:g}x below its guess "
                    f"({np.rad2deg(prep.gyro_density):.3g} deg/s/sqrt(Hz)) and estimated by the solve")
