@@ -105,8 +105,8 @@ def variance_components(problem: JointProblem, prep: Prepared, lin: Linearisatio
     try:
         inverse = inverse_on_pattern(reduce_hessian(H, problem.n_theta, problem.B), H)
     except np.linalg.LinAlgError:   # the information is singular here: no redundancy to measure a level with
-        return VarianceComponents(1.0, 1.0, float("nan"), float("nan"))
-    if not np.all(np.isfinite(inverse)):
+        inverse = None
+    if inverse is None or not np.all(np.isfinite(inverse)):
         return VarianceComponents(1.0, 1.0, float("nan"), float("nan"))
     gyro = gyro_residuals(r, grid.stride)[grid.gyro_linked]
     mag = magnetometer_residuals(r, grid.stride)[grid.sample_mask]
