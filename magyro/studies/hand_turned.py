@@ -25,6 +25,7 @@ import numpy as np
 
 from magyro import so3
 from magyro.session import Session
+from magyro.studies.simulate import gauss_markov
 
 FINE_RATE_HZ = 2000.0
 
@@ -112,13 +113,7 @@ def body_attitude_and_rate(rng: np.random.Generator, t_s: np.ndarray, kind: Hand
 
 def field_wander(rng: np.random.Generator, t_s: np.ndarray, kind: HandTurned) -> np.ndarray:
     """An isotropic Gauss-Markov wander of the world field (uT), std `field_wander` of it per axis."""
-    decay = np.exp(-np.diff(t_s) / kind.field_correlation_s)
-    kicks = rng.standard_normal((len(t_s), 3)) * kind.field_wander * kind.field_uT
-    d = np.empty_like(kicks)
-    d[0] = kicks[0]
-    for k in range(1, len(t_s)):
-        d[k] = decay[k - 1] * d[k - 1] + np.sqrt(1.0 - decay[k - 1] ** 2) * kicks[k]
-    return d
+    return gauss_markov(t_s, kind.field_wander * kind.field_uT, kind.field_correlation_s, rng)
 
 
 def simulate_hand_turned(seed: int, kind: HandTurned = HandTurned()) -> tuple[Session, dict]:

@@ -166,19 +166,25 @@ def write_truth(truth: dict, path: str | os.PathLike) -> None:
     write_text_atomically(path, json.dumps(truth, indent=2) + "\n")
 
 
+def gauss_markov(t_s: np.ndarray, std: float, correlation_s: float, rng: np.random.Generator) -> np.ndarray:
+    """(N, 3) an isotropic first-order Gauss-Markov process at the times t_s: stationary std `std` per axis,
+    correlation time `correlation_s`, started in its stationary distribution."""
+    decay = np.exp(-np.diff(t_s) / correlation_s)
+    kicks = rng.standard_normal((len(t_s), 3))
+    delta = np.empty((len(t_s), 3))
+    delta[0] = std * kicks[0]
+    for k in range(1, len(t_s)):
+        delta[k] = decay[k - 1] * delta[k - 1] + std * np.sqrt(1.0 - decay[k - 1] ** 2) * kicks[k]
+    return delta
+
+
 def with_field_disturbance(session: Session, problem: Scenario, std_fraction: float, correlation_s: float,
                            seed: int) -> Session:
     """The session in a field that is not homogeneous: m^i + delta(t), delta an isotropic Gauss-Markov process
     in the frame i (std `std_fraction` of the field per axis, correlation time `correlation_s`), as a room's
     iron makes it along a hand-held path. Only the magnetometer changes; the truth stays that of the problem."""
-    rng = np.random.default_rng([seed, 7])
     t = session.t_mag_s
-    decay = np.exp(-np.diff(t) / correlation_s)
-    kicks = rng.standard_normal((len(t), 3))
-    delta = np.empty((len(t), 3))
-    delta[0] = std_fraction * kicks[0]
-    for k in range(1, len(t)):
-        delta[k] = decay[k - 1] * delta[k - 1] + std_fraction * np.sqrt(1.0 - decay[k - 1] ** 2) * kicks[k]
+    delta = gauss_markov(t, std_fraction, correlation_s, np.random.default_rng([seed, 7]))
     C_m_i = truth_attitude(problem, t - problem.mag_time_offset_s)
     extra = np.einsum("nji,nj->ni", C_m_i, delta) @ np.linalg.inv(problem.R).T
     return dataclasses.replace(session, mag=session.mag + extra,
