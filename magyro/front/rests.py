@@ -68,14 +68,20 @@ def moving_average(t_s: np.ndarray, x: np.ndarray, width_s: float) -> np.ndarray
     return (c[hi] - c[lo]) / np.maximum(hi - lo, 1)[:, None]
 
 
+def smoothed_noise_band(t_s: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """STILL_IN_NOISE_STD stds of a SMOOTH_S moving average of white noise of per-sample `std` (per axis): how far
+    the smoothed signal of a still sensor strays."""
+    n_smooth = max(1.0, SMOOTH_S * (len(t_s) - 1) / max(t_s[-1] - t_s[0], 1e-12))
+    return STILL_IN_NOISE_STD * std / np.sqrt(n_smooth)
+
+
 def still_prefix_s(t_s: np.ndarray, x: np.ndarray, white_std: np.ndarray) -> float:
     """How long x stays like its first WINDOW_S (0 when it is moving from the start)."""
     first = t_s <= t_s[0] + WINDOW_S
     mean0, std0 = x[first].mean(axis=0), x[first].std(axis=0)
     if first.sum() < 5 or np.any(std0 > MOVING_IF_STD_OVER_WHITE * np.maximum(white_std, 1e-12)):
         return 0.0
-    n_smooth = max(1.0, SMOOTH_S * (len(t_s) - 1) / (t_s[-1] - t_s[0]))
-    band = STILL_IN_NOISE_STD * np.maximum(std0, white_std) / np.sqrt(n_smooth)
+    band = smoothed_noise_band(t_s, np.maximum(std0, white_std))
     away = np.any(np.abs(moving_average(t_s, x, SMOOTH_S) - mean0) > band, axis=1)
     return float((t_s[np.argmax(away)] if away.any() else t_s[-1]) - t_s[0])
 

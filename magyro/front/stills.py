@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from magyro.front.differences import white_noise_std
-from magyro.front.rests import SMOOTH_S, STILL_IN_NOISE_STD, Rests, moving_average
+from magyro.front.rests import SMOOTH_S, Rests, moving_average, smoothed_noise_band
 from magyro.session import Session
 
 MIN_STILL_S = 2.0         # a still lasts at least this long (after its edges are taken off)
@@ -63,23 +63,17 @@ class Stills:
             raise InputError("stills must be {count, segments_s: [[start, end], ...], seconds, poses}") from None
 
 
-def smoothed_noise_band(t_s: np.ndarray, white_std: np.ndarray) -> np.ndarray:
-    """STILL_IN_NOISE_STD stds of a SMOOTH_S moving average of white noise `white_std` (per axis)."""
-    n_smooth = max(1.0, SMOOTH_S * (len(t_s) - 1) / max(t_s[-1] - t_s[0], 1e-12))
-    return STILL_IN_NOISE_STD * np.maximum(white_std, 1e-12) / np.sqrt(n_smooth)
-
-
 def gyro_still(session: Session, bias_rad_s: np.ndarray) -> np.ndarray:
     """(n_gyro,) True where the smoothed gyro is within its noise band (plus the drift allowance) of the bias."""
     t, y = session.t_gyro_s, session.gyro_rad_s
-    band = smoothed_noise_band(t, white_noise_std(y)) + BIAS_ALLOWANCE_RAD_S
+    band = smoothed_noise_band(t, np.maximum(white_noise_std(y), 1e-12)) + BIAS_ALLOWANCE_RAD_S
     return np.all(np.abs(moving_average(t, y, SMOOTH_S) - bias_rad_s) <= band, axis=1)
 
 
 def accelerometer_still(session: Session) -> np.ndarray:
     """(n_acc,) True where the smoothed accelerometer is within its noise band of its mean over LOCAL_S."""
     t, a = session.t_acc_s, session.acc_m_s2
-    band = smoothed_noise_band(t, white_noise_std(a))
+    band = smoothed_noise_band(t, np.maximum(white_noise_std(a), 1e-12))
     return np.all(np.abs(moving_average(t, a, SMOOTH_S) - moving_average(t, a, LOCAL_S)) <= band, axis=1)
 
 
